@@ -1,0 +1,46 @@
+# Two entry points for a fresh clone: `make demo` (set up, then simulate all five activities) and
+# `make test` (set up, then run the test suite). Set-up is idempotent and only redone when pyproject changes.
+PYTHON ?= python3.11
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+OUT    ?= out/demo
+ACTIVITIES := walk fall sit stand pick
+
+.PHONY: demo test env llvm bench clean
+
+demo: env
+	@for a in $(ACTIVITIES); do \
+	  $(BIN)/rtchannel simulate --activity $$a --backend points --out $(OUT)/$$a || exit 1; \
+	done
+	@echo "signatures and plots are in $(OUT)/<activity>/"
+
+test: env
+	$(BIN)/python -m pytest -q
+
+bench: env
+	$(BIN)/python benchmarks/bench_points.py
+
+env: llvm $(STAMP)
+
+# Dr.Jit (Mitsuba/Sionna RT) needs libLLVM >= 16; Debian 12's default 15 aborts the process.
+llvm:
+	@if ! $(PYTHON) -c "import sys; sys.path.insert(0, '.'); from rtchannel.llvm import find_libllvm; sys.exit(find_libllvm() is None)"; then \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null; then \
+	    echo "installing libllvm19 (Dr.Jit needs LLVM >= 16)"; \
+	    apt-get update -qq && apt-get install -y -qq libllvm19 >/dev/null; \
+	  else \
+	    echo "error: no usable libLLVM (>= 16) for Dr.Jit: install LLVM >= 16, e.g. 'sudo apt-get install -y libllvm19'" >&2; exit 2; \
+	  fi; \
+	fi
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	# torch first, pinned: later requirements must never pull another (CUDA) build
+	$(BIN)/pip install -q torch==2.13.0
+	$(BIN)/pip install -q -e ".[test]"
+	touch $(STAMP)
+
+clean:
+	rm -rf $(VENV) out

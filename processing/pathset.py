@@ -1,0 +1,76 @@
+"""The backend-independent path-set contract.
+
+Every scattering backend (points, facets, sionna) hands the synthesiser, per radar link, the delays and
+complex gains of its propagation paths at frame times t_k. The gain excludes the propagation phase
+2*pi*f0*tau, which the synthesiser forms in float64 from the delay.
+
+Two kinds of path sets:
+- persistent (``ids`` given): column p is the same physical path in every frame (a point scatterer, a
+  mesh facet). Delays are interpolated smoothly between frames, so the Doppler of a path comes from its
+  delay history, and a path that is absent in a frame (gain 0, delay NaN) fades in and out.
+- frame-local (``ids`` is None): columns carry no identity across frames (e.g. Sionna RT paths). Each
+  frame's paths are extrapolated with their delay rates and successive frames are cross-faded.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class PathSet:
+    """Paths of one radar link.
+
+    Attributes:
+        times: frame times t_k [K] in seconds, strictly increasing.
+        delays: propagation delays tau [K, P] in seconds (float64); NaN where a path is absent.
+        gains: complex amplitude gains [K, P] (no propagation phase); 0 where a path is absent.
+        ids: stable path identities [P] (int64), or None for frame-local paths.
+        delay_rates: d tau / dt [K, P] (dimensionless, s/s), or None. Required for Doppler of
+            frame-local paths; optional for persistent ones (then used for Hermite interpolation).
+        link: name of the radar link these paths belong to.
+    """
+
+    times: np.ndarray
+    delays: np.ndarray
+    gains: np.ndarray
+    ids: np.ndarray | None = None
+    delay_rates: np.ndarray | None = None
+    link: str = ""
+
+    def __post_init__(self) -> None:
+        self.times = np.asarray(self.times, dtype=np.float64)
+        self.delays = np.asarray(self.delays, dtype=np.float64)
+        self.gains = np.asarray(self.gains, dtype=np.complex128)
+        k, p = self.delays.shape
+        if self.times.shape != (k,) or self.gains.shape != (k, p):
+            raise ValueError(f"PathSet shapes disagree: times {self.times.shape}, delays {self.delays.shape}, "
+                             f"gains {self.gains.shape}")
+        if self.ids is not None and np.shape(self.ids) != (p,):
+            raise ValueError(f"PathSet ids must have shape ({p},), got {np.shape(self.ids)}")
+        if self.delay_rates is not None:
+            self.delay_rates = np.asarray(self.delay_rates, dtype=np.float64)
+            if self.delay_rates.shape != (k, p):
+                raise ValueError("PathSet delay_rates must have the shape of delays")
+        if k >= 2 and not np.all(np.diff(self.times) > 0):
+            raise ValueError("PathSet times must be strictly increasing")
+        present = self.gains != 0
+        if not np.all(np.isfinite(self.gains)):
+            raise ValueError(f"PathSet for link '{self.link}' has NaN/inf gains")
+        if np.any(present & ~np.isfinite(self.delays)):
+            raise ValueError(f"PathSet for link '{self.link}' has a path with a gain but no finite delay")
+        if np.any(self.delays[present] < 0):
+            raise ValueError(f"PathSet for link '{self.link}' has negative delays")
+
+    @property
+    def n_frames(self) -> int:
+        return self.delays.shape[0]
+
+    @property
+    def n_paths(self) -> int:
+        return self.delays.shape[1]
+
+    @property
+    def persistent(self) -> bool:
+        return self.ids is not None

@@ -1,0 +1,124 @@
+"""The `rtchannel` command line. Errors in user input: one line on stderr, exit status 2."""
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+from pydantic import ValidationError
+
+EXIT_USAGE = 2
+
+
+class UserError(Exception):
+    """A problem with what the user asked for; printed as one line, exit status 2."""
+
+
+def _validation_line(err: ValidationError, what: str) -> str:
+    first = err.errors()[0]
+    loc = ".".join(str(x) for x in first.get("loc", ())) or "(root)"
+    more = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
+    return f"{what}: {loc}: {first.get('msg', 'invalid value')}{more}"
+
+
+def _add_simulate(sub) -> None:
+    p = sub.add_parser("simulate", help="simulate one activity and write signature.h5 plus PNGs",
+                       description="Simulate one activity through a scattering backend and the shared FMCW "
+                       "synthesiser/DSP; writes DIR/signature.h5 and DIR/{pvt,mean_velocity,range}.png.")
+    p.add_argument("--activity", default="walk", help="fall, walk, stand, sit or pick (default walk)")
+    p.add_argument("--backend", default="points", help="scattering backend (default points)")
+    p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--direction", type=int, default=1, help="seed direction 1..18 (Radar 1 at 20(k-1) deg)")
+    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z instead [deg]")
+    p.add_argument("--height", type=float, default=1.75, help="body height [m] (default 1.75)")
+    p.add_argument("--speed", type=float, help="walking speed [m/s] (walk only)")
+    p.add_argument("--duration", type=float, help="activity duration [s]")
+    p.add_argument("--fps", type=float, default=60.0, help="motion frame rate [Hz] (default 60)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--keep-iq", action="store_true", help="store raw IQ in signature.h5")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_simulate)
+
+
+def cmd_simulate(args) -> int:
+    from tqdm import tqdm
+
+    from processing.signature_file import write_signature_file
+    from rtchannel.motion.procedural import ProceduralParams, generate
+    from rtchannel.plots import plot_all
+    from rtchannel.radar import RadarConfig, direction_angles
+    from rtchannel.simulate import simulate
+
+    if args.radar_config is not None and not args.radar_config.is_file():
+        raise UserError(f"radar config file not found: {args.radar_config}")
+    try:
+        radar = RadarConfig.from_file(args.radar_config) if args.radar_config else RadarConfig()
+    except ValidationError as e:
+        raise UserError(_validation_line(e, f"radar config {args.radar_config}")) from None
+    angle = args.angle_deg if args.angle_deg is not None else direction_angles(args.direction)[0]
+    radar = radar.rotated(angle)
+    overrides = {k: v for k, v in (("speed", args.speed), ("duration", args.duration)) if v is not None}
+    try:
+        params = ProceduralParams(height=args.height, fps=args.fps, seed=args.seed, **overrides)
+    except ValidationError as e:
+        raise UserError(_validation_line(e, "motion parameters")) from None
+    motion = generate(args.activity, params)
+
+    n_chirps = int(motion.duration / radar.waveform.pri_s + 1) * len(radar.links)
+    with tqdm(total=n_chirps, unit="chirp", disable=args.quiet or None, desc=f"{args.activity}") as bar:
+        result = simulate(motion, radar, backend=args.backend, keep_iq=args.keep_iq, progress=bar.update)
+    sigs = {name: r.signature for name, r in result.links.items()}
+    config = {"motion": motion.params, "radar": radar.model_dump(mode="json"), "backend": args.backend,
+              "angle_deg": angle, "direction": None if args.angle_deg is not None else args.direction}
+    link_attrs = {link.name: {"tx": link.tx_pos, "rx": link.rx_pos} for link in radar.links}
+    out = write_signature_file(
+        args.out / "signature.h5", sigs, activity=args.activity, backend=args.backend, seed=args.seed,
+        direction_deg=angle, config=config, link_attrs=link_attrs,
+        iq={n: r.iq for n, r in result.links.items()} if args.keep_iq else None)
+    print(f"wrote {out}")
+    if not args.no_plots:
+        for png in plot_all(sigs, args.out, title=f"{args.activity} ({args.backend}, {angle:g} deg)"):
+            print(f"wrote {png}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="rtchannel", description="Motion-capture driven MIMO radar simulator.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_simulate(sub)
+    from rtchannel.bench_cli import add_bench
+
+    add_bench(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+
+    def one_line_warning(message, category, filename, lineno, file=None, line=None):
+        print(f"warning: {message}", file=sys.stderr)
+
+    warnings.showwarning = one_line_warning
+    try:
+        return args.func(args)
+    except UserError as e:
+        print(f"error: {e}", file=sys.stderr)
+    except ValidationError as e:
+        print(f"error: {_validation_line(e, 'invalid value')}", file=sys.stderr)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+    except Exception as e:  # noqa: BLE001 - any library failure surfaces as one clear line
+        if type(e).__name__ == "LLVMNotFoundError":
+            print(f"error: {e}", file=sys.stderr)
+        else:
+            raise
+    return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Motion sources: procedural generators and (later) motion-capture importers, all producing `Motion`."""

@@ -1,0 +1,108 @@
+"""Radar description: waveform plus antenna positions per link, and the seed's 18 directions.
+
+A *link* is one transmitter/receiver pair: monostatic (tx = rx, the seed's radars), bistatic (tx and
+rx apart) or, by listing several links that share a transmitter, multistatic. Any number of links.
+Positions are in the project frame (z up, metres). The seed's y-up positions (x, y, z) are (x, -z, y)
+here: Radar 1 at (3, 0, 1.1) m and Radar 2 at (0, -3, 1.1) m.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from processing.dsp import DSPConfig
+from processing.waveform import Waveform
+
+MONOSTATIC_TOLERANCE_M = 0.1  # tx and rx closer than this share one position (co-located horns)
+
+
+class Link(BaseModel):
+    """One transmitter -> receiver link. Positions in metres."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$")
+    tx: tuple[float, float, float]
+    rx: tuple[float, float, float] | None = Field(None, description="receiver; default = tx (monostatic)")
+
+    @field_validator("tx", "rx")
+    @classmethod
+    def _finite(cls, v):
+        if v is not None and not np.all(np.isfinite(v)):
+            raise ValueError("antenna position must be finite")
+        return v
+
+    @property
+    def tx_pos(self) -> np.ndarray:
+        return np.asarray(self.tx, dtype=float)
+
+    @property
+    def rx_pos(self) -> np.ndarray:
+        return np.asarray(self.tx if self.rx is None else self.rx, dtype=float)
+
+    @property
+    def monostatic(self) -> bool:
+        return float(np.linalg.norm(self.tx_pos - self.rx_pos)) < MONOSTATIC_TOLERANCE_M
+
+
+def _seed_links() -> list[Link]:
+    return [Link(name="radar1", tx=(3.0, 0.0, 1.1)), Link(name="radar2", tx=(0.0, -3.0, 1.1))]
+
+
+class RadarConfig(BaseModel):
+    """Waveform, DSP settings and links of a (distributed MIMO) radar. Defaults: the seed's 2x2 system."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    waveform: Waveform = Field(default_factory=Waveform)
+    dsp: DSPConfig = Field(default_factory=DSPConfig)
+    links: list[Link] = Field(default_factory=_seed_links, min_length=1)
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> "RadarConfig":
+        names = [link.name for link in self.links]
+        if len(set(names)) != len(names):
+            raise ValueError(f"link names must be unique, got {names}")
+        return self
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> "RadarConfig":
+        """Load from YAML or JSON; raises pydantic's ValidationError naming a bad field."""
+        text = Path(path).read_text()
+        data = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)
+        return cls.model_validate(data or {})
+
+    def rotated(self, angle_deg: float) -> "RadarConfig":
+        """All antennas rotated by `angle_deg` (counter-clockwise seen from above) about the vertical z axis."""
+        a = np.deg2rad(angle_deg)
+        rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+
+        def rot(p):
+            return None if p is None else tuple(float(x) for x in rz @ np.asarray(p, dtype=float))
+
+        links = [link.model_copy(update={"tx": rot(link.tx), "rx": rot(link.rx)}) for link in self.links]
+        return self.model_copy(update={"links": links})
+
+    def for_direction(self, direction: int) -> "RadarConfig":
+        """The radar set rotated for the seed's direction 1..18 (Radar 1 at 20 (k - 1) degrees)."""
+        return self.rotated(direction_angles(direction)[0])
+
+
+def wrap_deg(angle: float) -> float:
+    """Angle wrapped into [-180, 180) degrees."""
+    return float((angle + 180.0) % 360.0 - 180.0)
+
+
+def direction_angles(direction: int) -> tuple[float, float]:
+    """(theta_R1, theta_R2) in degrees of the seed's direction k = 1..18; theta_R1 - theta_R2 = 90 deg.
+
+    Direction 11 gives (-160, 110), as in the seed's Fig. 6.
+    """
+    if not (isinstance(direction, (int, np.integer)) and 1 <= direction <= 18):
+        raise ValueError(f"direction must be an integer 1..18, got {direction!r}")
+    t1 = wrap_deg(20.0 * (direction - 1))
+    return t1, wrap_deg(t1 - 90.0)

@@ -1,0 +1,201 @@
+"""The CMU-named 31-joint skeleton of the avatar and the pose-sequence contract (`Motion`).
+
+Pose convention (used by every motion source, the skinning and the point scatterers): a pose is a
+*rest-relative* global rotation ``R_j`` and a global joint position ``p_j`` per joint, such that a point
+``x`` rigidly attached to joint ``j`` in the rest pose moves to ``p_j + R_j (x - rest_j)``. This is the
+linear-blend-skinning transform, so skinning and the point backend see exactly the same body.
+
+Frame: the project's (z up, metres); in the rest pose the avatar stands at the origin facing +x, its
+left side on +y, soles on z = 0.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation, Slerp
+
+from rtchannel.assets import avatar_dir
+
+# Topological order: every parent precedes its children.
+JOINT_NAMES: tuple[str, ...] = (
+    "Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase",
+    "RHipJoint", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase",
+    "LowerBack", "Spine", "Spine1", "Neck", "Neck1", "Head",
+    "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "LeftFingerBase", "LeftHandFinger1", "LThumb",
+    "RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightFingerBase", "RightHandFinger1",
+    "RThumb",
+)
+JOINT_INDEX = {n: i for i, n in enumerate(JOINT_NAMES)}
+
+# Blender metres (body facing -y) -> project frame (facing +x): rotate +90 deg about z, lift soles to 0.
+_BLENDER_TO_PROJECT = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+SOLE_OFFSET_M = 0.81676  # lowest skin vertex of the body group in Blender z [m]
+REST_HEIGHT_M = 1.66589  # soles to top of the head of the rest mesh [m]
+HEAD_TOP_ABOVE_HEAD_JOINT_M = 0.849 - 0.697  # skin top above the Head joint in the rest pose [m]
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Joint hierarchy and rest pose.
+
+    Attributes:
+        names: joint names (CMU/cgspeed BVH names).
+        parents: parent index per joint, -1 for the root.
+        rest: rest-pose joint (bone head) positions [J, 3] in metres, project frame.
+        tails: rest-pose bone tail positions [J, 3] in metres.
+        height: standing height (soles to top of head) of the body this rig drives [m].
+    """
+
+    names: tuple[str, ...]
+    parents: np.ndarray
+    rest: np.ndarray
+    tails: np.ndarray
+    height: float
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+    def scaled(self, height: float) -> "Rig":
+        """This rig uniformly scaled about the floor point under the origin to `height` metres."""
+        if not np.isfinite(height) or height <= 0.3 or height > 3.0:
+            raise ValueError(f"height must be a plausible body height in metres (0.3-3 m), got {height}")
+        s = height / self.height
+        return replace(self, rest=self.rest * s, tails=self.tails * s, height=float(height))
+
+    def children(self, j: int) -> list[int]:
+        return [k for k, p in enumerate(self.parents) if p == j]
+
+
+@lru_cache(maxsize=1)
+def _load_avatar_rig() -> Rig:
+    raw = json.loads((avatar_dir() / "rig.cmu_mb.json").read_text())
+    missing = set(JOINT_NAMES) - set(raw)
+    if missing:
+        raise ValueError(f"rig.cmu_mb.json lacks joints {sorted(missing)}")
+    heads = np.array([raw[n]["head"]["default_position"] for n in JOINT_NAMES], dtype=float)
+    tails = np.array([raw[n]["tail"]["default_position"] for n in JOINT_NAMES], dtype=float)
+    lift = np.array([0.0, 0.0, SOLE_OFFSET_M])
+    heads = heads @ _BLENDER_TO_PROJECT.T + lift
+    tails = tails @ _BLENDER_TO_PROJECT.T + lift
+    parents = np.array([JOINT_INDEX[raw[n]["parent"]] if raw[n]["parent"] else -1 for n in JOINT_NAMES])
+    return Rig(JOINT_NAMES, parents, heads, tails, REST_HEIGHT_M)
+
+
+def avatar_rig(height: float | None = None) -> Rig:
+    """The avatar's rig in the project frame, optionally scaled to `height` metres."""
+    rig = _load_avatar_rig()
+    return rig if height is None else rig.scaled(height)
+
+
+@dataclass
+class Motion:
+    """A pose sequence sampled at a constant frame rate.
+
+    Attributes:
+        rig: the skeleton (rest pose, hierarchy, height).
+        fps: frame rate [Hz].
+        rotations: rest-relative global joint rotations [F, J, 3, 3].
+        positions: global joint positions [F, J, 3] in metres.
+        activity: activity label (``walk``, ``fall``, ``sit``, ``stand``, ``pick``) or "".
+        params: every parameter that produced this motion (JSON-serialisable).
+    """
+
+    rig: Rig
+    fps: float
+    rotations: np.ndarray
+    positions: np.ndarray
+    activity: str = ""
+    params: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        f, j = self.positions.shape[:2]
+        if self.rotations.shape != (f, j, 3, 3) or j != self.rig.n_joints:
+            raise ValueError(
+                f"Motion shapes disagree: positions {self.positions.shape}, rotations "
+                f"{self.rotations.shape}, rig has {self.rig.n_joints} joints")
+        if f < 2:
+            raise ValueError("a Motion needs at least two frames")
+        if not (np.isfinite(self.positions).all() and np.isfinite(self.rotations).all()):
+            raise ValueError("Motion contains NaN or infinite joint data")
+        if not self.fps > 0:
+            raise ValueError(f"fps must be positive, got {self.fps}")
+
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def times(self) -> np.ndarray:
+        """Frame times [s], starting at 0."""
+        return np.arange(self.n_frames) / self.fps
+
+    @property
+    def duration(self) -> float:
+        """Time from the first to the last frame [s]."""
+        return (self.n_frames - 1) / self.fps
+
+    def attached_points(self, joints: np.ndarray, rest_points: np.ndarray) -> np.ndarray:
+        """Trajectories [F, M, 3] (m) of points rigidly attached to `joints` [M] at rest positions [M, 3]."""
+        joints = np.asarray(joints)
+        local = rest_points - self.rig.rest[joints]
+        return self.positions[:, joints] + np.einsum("fmab,mb->fma", self.rotations[:, joints], local)
+
+    def skinning_matrices(self) -> np.ndarray:
+        """Per-frame linear-blend-skinning transforms [F, J, 3, 4]: x -> R_j x + (p_j - R_j rest_j)."""
+        t = self.positions - np.einsum("fjab,jb->fja", self.rotations, self.rig.rest)
+        return np.concatenate([self.rotations, t[..., None]], axis=-1)
+
+    def resampled(self, fps: float) -> "Motion":
+        """The same motion at another frame rate: slerp for rotations, cubic splines for positions."""
+        if fps == self.fps:
+            return self
+        t_old = self.times
+        n_new = int(np.floor(self.duration * fps + 1e-9)) + 1
+        t_new = np.arange(n_new) / fps
+        pos = CubicSpline(t_old, self.positions, axis=0)(t_new)
+        rot = np.empty((n_new, self.rig.n_joints, 3, 3))
+        for j in range(self.rig.n_joints):
+            rot[:, j] = Slerp(t_old, Rotation.from_matrix(self.rotations[:, j]))(t_new).as_matrix()
+        return replace(self, fps=float(fps), rotations=rot, positions=pos,
+                       params={**self.params, "resampled_fps": float(fps)})
+
+    def transformed(self, yaw_rad: float = 0.0, offset=(0.0, 0.0, 0.0)) -> "Motion":
+        """The motion rotated by `yaw_rad` about the vertical through the origin, then shifted by `offset` (m)."""
+        rz = Rotation.from_euler("z", yaw_rad).as_matrix()
+        pos = self.positions @ rz.T + np.asarray(offset, dtype=float)
+        rot = np.einsum("ab,fjbc->fjac", rz, self.rotations)
+        return replace(self, positions=pos, rotations=rot)
+
+
+def forward_kinematics(rig: Rig, local_rotations: np.ndarray, root_positions: np.ndarray) -> tuple[
+        np.ndarray, np.ndarray]:
+    """Global rest-relative rotations and joint positions from local ones.
+
+    Args:
+        rig: the skeleton.
+        local_rotations: [F, J, 3, 3] rotation of each joint relative to its parent, expressed in the
+            world-aligned rest frame (identity everywhere gives the rest pose).
+        root_positions: [F, 3] position of the root joint (Hips) in metres.
+
+    Returns:
+        (rotations [F, J, 3, 3], positions [F, J, 3]) as `Motion` expects them.
+    """
+    f = local_rotations.shape[0]
+    rot = np.empty_like(local_rotations)
+    pos = np.empty((f, rig.n_joints, 3))
+    for j, p in enumerate(rig.parents):
+        if p < 0:
+            rot[:, j] = local_rotations[:, j]
+            pos[:, j] = root_positions
+        else:
+            rot[:, j] = rot[:, p] @ local_rotations[:, j]
+            pos[:, j] = pos[:, p] + rot[:, p] @ (rig.rest[j] - rig.rest[p])
+    return rot, pos

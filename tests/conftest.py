@@ -1,0 +1,16 @@
+import numpy as np
+import pytest
+
+from processing.pathset import PathSet
+from processing.waveform import C0
+
+
+def moving_point_paths(ranges: np.ndarray, times: np.ndarray, gain: complex = 1.0) -> PathSet:
+    """Persistent single path whose (bistatic half-path) range follows `ranges` [m] at `times` [s]."""
+    return PathSet(times=times, delays=(2 * ranges / C0)[:, None], gains=np.full((times.size, 1), gain, complex),
+                   ids=np.array([0]))
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)

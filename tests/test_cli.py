@@ -1,0 +1,75 @@
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from rtchannel.cli import main
+
+COMMANDS = ["simulate", "bench"]
+
+
+def test_help_for_every_command(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    for cmd in COMMANDS:
+        with pytest.raises(SystemExit) as e:
+            main([cmd, "--help"])
+        assert e.value.code == 0
+        assert cmd in capsys.readouterr().out
+
+
+def _one_error_line(capsys):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    return err[0]
+
+
+@pytest.mark.parametrize("yaml_text, field", [
+    ("waveform:\n  pri_s: -0.0005\n", "pri_s"),
+    ("waveform:\n  adc_rate_hz: 1000\n", "adc_rate_hz"),
+    ("links:\n  - {name: r1, tx: [1, 2]}\n", "links.0.tx"),
+    ("dsp:\n  range_sum: sideways\n", "dsp.range_sum"),
+])
+def test_bad_radar_config_is_one_line_exit_2(tmp_path, capsys, yaml_text, field):
+    cfg = tmp_path / "radar.yaml"
+    cfg.write_text(yaml_text)
+    assert main(["simulate", "--out", str(tmp_path / "o"), "--radar-config", str(cfg), "--quiet"]) == 2
+    assert field in _one_error_line(capsys)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--activity", "dance"], "dance"),
+    (["--height", "-1"], "height"),
+    (["--direction", "19"], "direction"),
+    (["--radar-config", "/nonexistent.yaml"], "not found"),
+])
+def test_bad_arguments_are_one_line_exit_2(tmp_path, capsys, args, needle):
+    assert main(["simulate", "--out", str(tmp_path), "--quiet", *args]) == 2
+    assert needle in _one_error_line(capsys)
+
+
+def test_simulate_writes_signature_file_and_plots(tmp_path):
+    out = tmp_path / "walk"
+    assert main(["simulate", "--activity", "walk", "--out", str(out), "--direction", "11", "--seed", "3",
+                 "--duration", "2.0", "--quiet", "--keep-iq"]) == 0
+    with h5py.File(out / "signature.h5") as f:
+        assert f.attrs["activity"] == "walk" and f.attrs["backend"] == "points"
+        assert f.attrs["seed"] == 3 and f.attrs["direction_deg"] == -160.0
+        assert "motion" in f.attrs["config"] and "waveform" in f.attrs["config"]
+        assert set(f) == {"radar1", "radar2"}
+        g = f["radar1"]
+        nv, nt = g["p_vt"].shape
+        assert g["velocity"].shape == (nv,) and g["time"].shape == (nt,) and g["mean_velocity"].shape == (nt,)
+        assert g["range_distribution"].shape == (g["range"].shape[0], nt)
+        assert g["iq"].shape[1] == 128 and np.isfinite(g["p_vt"][()]).all()
+    for png in ("pvt.png", "mean_velocity.png", "range.png"):
+        assert (out / png).stat().st_size > 10_000
+
+
+def test_console_script_entry_point(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "rtchannel.cli", "simulate", "--out", str(tmp_path),
+                        "--activity", "nope", "--quiet"], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "nope" in r.stderr
