@@ -36,6 +36,10 @@ def _add_simulate(sub) -> None:
     p.add_argument("--height", type=float, default=1.75, help="body height [m] (default 1.75)")
     p.add_argument("--speed", type=float, help="walking speed [m/s] (walk only)")
     p.add_argument("--duration", type=float, help="activity duration [s]")
+    p.add_argument("--distance", type=float, help="walking distance [m] (walk only, default 4)")
+    p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"),
+                   help="start of the hips' ground point [m]; default: walks are centred on the origin "
+                   "(toward Radar 1 at direction 1), other activities start at the origin")
     p.add_argument("--fps", type=float, default=60.0, help="motion frame rate [Hz] (default 60)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--keep-iq", action="store_true", help="store raw IQ in signature.h5")
@@ -61,7 +65,15 @@ def cmd_simulate(args) -> int:
         raise UserError(_validation_line(e, f"radar config {args.radar_config}")) from None
     angle = args.angle_deg if args.angle_deg is not None else direction_angles(args.direction)[0]
     radar = radar.rotated(angle)
-    overrides = {k: v for k, v in (("speed", args.speed), ("duration", args.duration)) if v is not None}
+    overrides = {k: v for k, v in (("speed", args.speed), ("duration", args.duration),
+                                   ("distance", args.distance)) if v is not None}
+    if args.start is not None:
+        overrides["start"] = tuple(args.start)
+    elif args.activity == "walk":
+        # centred on the origin so the default 4 m walk toward Radar 1 (3 m away) stops short of it
+        d = args.distance if args.distance is not None else (
+            4.0 if args.duration is None else (args.speed or 1.3) * args.duration)
+        overrides["start"] = (-d / 2, 0.0)
     try:
         params = ProceduralParams(height=args.height, fps=args.fps, seed=args.seed, **overrides)
     except ValidationError as e:

@@ -1,0 +1,226 @@
+"""C3D marker import (ezc3d): gap filling, joint centres from the 41-marker Vicon/CMU set.
+
+Joint centres (project frame, metres) from marker clusters:
+- pelvis: origin mid-ASIS (CMU's LFWT/RFWT, alias LASI/RASI), axes from ASIS and PSIS (LBWT/RBWT,
+  alias LPSI/RPSI); hip joint centres by Harrington et al. 2007 (J. Biomech. 40:595) from pelvis width
+  and depth;
+- knee and ankle centres: the lateral knee / ankle marker moved medially by half a joint width
+  (`KNEE_OFFSET_M`, `ANKLE_OFFSET_M`) along the pelvis' lateral axis made perpendicular to the segment;
+- shoulder centre: acromion marker lowered by `SHOULDER_DROP_M` along the thorax axis; elbow: the
+  lateral epicondyle marker itself (a few degrees of abduction bias); wrist: mid of the two wrist markers;
+- segment frames for pelvis, thorax (C7, T10, CLAV, STRN) and feet (heel, toe, fifth metatarsal), whose
+  anatomical zero is the avatar's rest orientation, and the head (four head markers), calibrated.
+"""
+from __future__ import annotations
+
+import struct
+import warnings
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from rtchannel.motion.errors import MotionImportError
+from rtchannel.motion.source import SourceMotion, guess_units, guess_up, parse_units, up_rotation
+
+KNEE_OFFSET_M = 0.055
+ANKLE_OFFSET_M = 0.045
+SHOULDER_DROP_M = 0.055
+MAX_GAP_S = 0.2
+ALIASES = {"LASI": "LFWT", "RASI": "RFWT", "LPSI": "LBWT", "RPSI": "RBWT", "RBAK": "RBAC"}
+REQUIRED = ("LFWT", "RFWT", "LBWT", "RBWT", "LTHI", "LKNE", "LSHN", "LANK", "LHEE", "LMT5", "LTOE",
+            "RTHI", "RKNE", "RSHN", "RANK", "RHEE", "RMT5", "RTOE", "CLAV", "STRN", "C7", "T10",
+            "LFHD", "RFHD", "LBHD", "RBHD", "LSHO", "LUPA", "LELB", "LWRA", "LWRB", "LFIN",
+            "RSHO", "RUPA", "RELB", "RWRA", "RWRB", "RFIN")
+
+
+def _header_frames(path: Path) -> int | None:
+    """Frame count stated in the C3D header (words 4 and 5: first and last frame), if readable."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(10)
+        first, last = struct.unpack("<HH", head[6:10])
+        return last - first + 1 if last >= first else None
+    except (OSError, struct.error):
+        return None
+
+
+def read_markers(path) -> tuple[dict[str, np.ndarray], float, str | None]:
+    """Marker trajectories {label: [F, 3]} in file units (NaN where missing), frame rate [Hz], units."""
+    path = Path(path)
+    if not path.is_file():
+        raise MotionImportError(path, "no such file")
+    import ezc3d
+
+    try:
+        c = ezc3d.c3d(str(path))
+        pts = np.asarray(c["data"]["points"], dtype=float)
+        rate = float(c["header"]["points"]["frame_rate"])
+        point = c["parameters"]["POINT"]
+        labels = [str(x) for x in point["LABELS"]["value"]]
+        units = str(point["UNITS"]["value"][0]) if "UNITS" in point and len(point["UNITS"]["value"]) else None
+        residuals = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)
+        stated = int(point["FRAMES"]["value"][0]) if "FRAMES" in point else None
+    except MotionImportError:
+        raise
+    except Exception as exc:  # ezc3d raises OSError/RuntimeError/ValueError on malformed files
+        raise MotionImportError(path, f"not a readable C3D file ({type(exc).__name__}: {exc})") from None
+    n = pts.shape[2] if pts.ndim == 3 else 0
+    expected = max(x for x in (stated or 0, _header_frames(path) or 0))
+    if n == 0 or len(labels) < pts.shape[1]:
+        raise MotionImportError(path, "C3D file holds no marker frames or fewer labels than markers")
+    if expected and n < expected:
+        raise MotionImportError(path, f"truncated: header says {expected} frames, file holds {n} "
+                                f"(frame {n} is missing)", frame=n)
+    if not rate > 0:
+        raise MotionImportError(path, f"invalid point frame rate {rate}")
+    xyz = np.transpose(pts[:3], (2, 1, 0))  # [F, M, 3]
+    xyz[np.transpose(residuals[0] < 0) if residuals.size else np.zeros(xyz.shape[:2], bool)] = np.nan
+    xyz[~np.isfinite(xyz).all(axis=2)] = np.nan
+    out = {}
+    for k, lab in enumerate(labels[:xyz.shape[1]]):
+        name = lab.split(":")[-1].strip().upper()
+        out[ALIASES.get(name, name)] = xyz[:, k]
+    return out, rate, units
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index runs where mask is True."""
+    d = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def fill_gaps(markers: dict[str, np.ndarray], fps: float, names, max_gap_s: float = MAX_GAP_S,
+              on_long_gap: str = "error", path="") -> dict:
+    """Fill NaN gaps of the named markers in place; returns a report {marker: [[first, last], ...]}.
+
+    Gaps up to `max_gap_s` seconds are filled (interior: PCHIP through the valid samples; at the ends:
+    the nearest valid sample). Longer gaps raise `MotionImportError` listing marker and frames
+    (``on_long_gap="error"``) or are filled the same way with a warning (``"warn"``).
+    """
+    from scipy.interpolate import PchipInterpolator
+
+    max_len = int(np.floor(max_gap_s * fps + 1e-9))
+    filled, long = {}, []
+    for name in names:
+        x = markers[name]
+        bad = np.isnan(x).any(axis=1)
+        if not bad.any():
+            continue
+        if bad.all():
+            long.append(f"{name}: no valid frame")
+            continue
+        runs = _runs(bad)
+        for s, e in runs:
+            if e - s > max_len:
+                long.append(f"{name}: frames {s}-{e - 1} ({(e - s) / fps:.2f} s)")
+        t = np.flatnonzero(~bad)
+        interp = PchipInterpolator(t, x[t], axis=0, extrapolate=False)
+        for s, e in runs:
+            idx = np.arange(s, e)
+            x[idx] = interp(idx) if s > 0 and e < len(x) else x[t[0] if s == 0 else t[-1]]
+        filled[name] = [[int(s), int(e - 1)] for s, e in runs]
+    if long:
+        msg = f"marker gaps longer than {max_gap_s} s: " + "; ".join(long[:12]) + (" ..." if len(long) > 12 else "")
+        if on_long_gap == "error" or any("no valid frame" in m for m in long):
+            raise MotionImportError(path, msg + " (raise max_gap_s or pass on_long_gap='warn' to fill them)")
+        warnings.warn(f"{path}: {msg}; filled by interpolation", stacklevel=3)
+    return filled
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _perp(v, axis):
+    return v - np.sum(v * axis, axis=-1, keepdims=True) * axis
+
+
+def _frame_xy(x, y_hint):
+    """Right-handed frames [F, 3, 3] (columns x, y, z) from x and an approximate y."""
+    x = _unit(x)
+    y = _unit(_perp(y_hint, x))
+    return np.stack([x, y, np.cross(x, y)], axis=-1)
+
+
+def joint_centres(m: dict[str, np.ndarray]) -> tuple[dict, dict]:
+    """Virtual joints [F, 3] and segment frames [F, 3, 3] from markers already in metres, z up."""
+    mid = lambda *n: sum(m[k] for k in n) / len(n)  # noqa: E731
+    asis, psis = mid("LFWT", "RFWT"), mid("LBWT", "RBWT")
+    pelvis = _frame_xy(asis - psis, m["LFWT"] - m["RFWT"])
+    pw = float(np.median(np.linalg.norm(m["LFWT"] - m["RFWT"], axis=1)))
+    pd = float(np.median(np.linalg.norm(asis - psis, axis=1)))
+    pts = dict(m)
+    for s, sign in (("L", 1.0), ("R", -1.0)):
+        local = np.array([-0.24 * pd - 0.0099, sign * (0.33 * pw + 0.0073), -0.30 * pw - 0.0109])
+        pts[f"{s}HJC"] = asis + pelvis @ local
+        lateral = sign * pelvis[..., 1]
+        thigh = _unit(m[f"{s}KNE"] - pts[f"{s}HJC"])
+        pts[f"{s}KJC"] = m[f"{s}KNE"] - KNEE_OFFSET_M * _unit(_perp(lateral, thigh))
+        shank = _unit(m[f"{s}ANK"] - pts[f"{s}KJC"])
+        pts[f"{s}AJC"] = m[f"{s}ANK"] - ANKLE_OFFSET_M * _unit(_perp(lateral, shank))
+    up = _unit(mid("C7", "CLAV") - mid("T10", "STRN"))
+    fwd = _unit(_perp(mid("CLAV", "STRN") - mid("C7", "T10"), up))
+    thorax = np.stack([fwd, np.cross(up, fwd), up], axis=-1)
+    pts["UTHORAX"] = pts["NECK"] = mid("C7", "CLAV")
+    pts["HEADC"] = mid("LFHD", "RFHD", "LBHD", "RBHD")
+    for s in ("L", "R"):
+        pts[f"{s}SJC"] = m[f"{s}SHO"] - SHOULDER_DROP_M * thorax[..., 2]
+        pts[f"{s}EJC"] = m[f"{s}ELB"]
+        pts[f"{s}WJC"] = mid(f"{s}WRA", f"{s}WRB")
+    head = _frame_xy(mid("LFHD", "RFHD") - mid("LBHD", "RBHD"), mid("LFHD", "LBHD") - mid("RFHD", "RBHD"))
+    frames = {"pelvis": pelvis, "thorax": thorax, "head": head}
+    for s, sign in (("L", 1.0), ("R", -1.0)):
+        frames[f"{s}foot"] = _frame_xy(m[f"{s}TOE"] - m[f"{s}HEE"], sign * (m[f"{s}MT5"] - m[f"{s}TOE"]))
+    for k, frac in (("lumbar1", 1 / 3), ("lumbar2", 2 / 3)):
+        rel = Rotation.from_matrix(np.einsum("fba,fbc->fac", pelvis, thorax))
+        frames[k] = pelvis @ Rotation.from_rotvec(rel.as_rotvec() * frac).as_matrix()
+    return pts, frames
+
+
+def read_c3d(path, *, units=None, up=None, max_gap_s: float = MAX_GAP_S, on_long_gap: str = "error") -> SourceMotion:
+    """Import a C3D marker file (41-marker Vicon/CMU set) as joint centres in the project frame.
+
+    Args:
+        path: the .c3d file.
+        units: marker unit ("mm", "m", ...) or metres per unit; default: the file's POINT:UNITS, else
+            guessed from the leg length.
+        up: the file's up axis ("z", "y", ...); guessed from head-above-ankle markers when None.
+        max_gap_s: longest marker gap (s) filled silently.
+        on_long_gap: "error" (default) or "warn" for longer gaps.
+    """
+    path = Path(path)
+    markers, fps, file_units = read_markers(path)
+    missing = [n for n in REQUIRED if n not in markers]
+    if missing:
+        raise MotionImportError(path, f"marker set lacks {', '.join(missing)} (labels found: "
+                                f"{', '.join(sorted(markers))})")
+    filled = fill_gaps(markers, fps, REQUIRED, max_gap_s, on_long_gap, path)
+    scale = parse_units(units) if units is not None else None
+    unit_name = units if isinstance(units, str) else None
+    if scale is None and file_units and file_units.strip().lower() in ("mm", "cm", "m"):
+        unit_name = file_units.strip().lower()
+        scale = parse_units(unit_name)
+    up_axis = up or guess_up(0.5 * (markers["LFHD"] + markers["RFHD"]), 0.5 * (markers["LANK"] + markers["RANK"]))
+    if scale is None:
+        rough = np.nanmedian(np.linalg.norm(markers["LFWT"] - markers["LANK"], axis=1))
+        unit_name = guess_units(float(rough))
+        if unit_name is None:
+            raise MotionImportError(path, "cannot guess the marker unit; pass units=")
+        scale = parse_units(unit_name)
+    c = up_rotation(up_axis) * scale
+    needed = {k: markers[k] @ c.T for k in REQUIRED}
+    big = {k: v for k, v in needed.items() if np.abs(v).max() > 100.0}
+    if big:
+        k, v = next(iter(big.items()))
+        frame = int(np.argmax(np.abs(v).max(axis=1)))
+        raise MotionImportError(path, f"marker {k} is {np.abs(v).max():.3g} m from the origin: corrupted "
+                                "data or wrong units", frame=frame)
+    pts, frames = joint_centres(needed)
+    info = {"format": "c3d", "rig": "c3d", "units": unit_name or f"{scale} m/unit", "metres_per_unit": scale,
+            "up": up_axis, "source_frames": int(len(next(iter(markers.values())))),
+            "markers": len(markers), "filled_gaps": filled, "max_gap_s": max_gap_s}
+    # Head markers sit on a headband whose tilt varies between subjects (the raw frame looks ~15 deg up),
+    # so the head's neutral is its mean orientation relative to the neck over the take instead.
+    neutral = {k: np.eye(3) for k in frames if k != "head"}
+    return SourceMotion(str(path), fps, pts, frames, neutral, "c3d", info)

@@ -1,0 +1,197 @@
+"""BVH and C3D import, retargeting onto the avatar, and clear errors for broken files."""
+import re
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rtchannel.avatar import load_avatar
+from rtchannel.motion.bvh import write_bvh
+from rtchannel.motion.errors import MotionImportError
+from rtchannel.motion.load import load_motion
+from rtchannel.skinning import skin_vertices
+
+SHARED = Path(__file__).resolve().parents[2] / "shared"
+MOCAP = SHARED / "mocap" / "cmu"
+WALKS = sorted((MOCAP / "walk").glob("*.bvh"))
+C3D_WALK = MOCAP / "walk" / "82_08.c3d"
+C3D_STAND = MOCAP / "stand" / "77_02.c3d"
+needs_data = pytest.mark.skipif(not WALKS, reason=f"CMU takes not found under {MOCAP}")
+
+
+@lru_cache(maxsize=None)
+def motion_of(path: Path):
+    return load_motion(path, activity="walk")
+
+
+def feet_vertices(av):
+    w = av.dense_weights()
+    r = av.rig
+    return {s: np.flatnonzero(w[:, [r.index(f"{s}Foot"), r.index(f"{s}ToeBase")]].sum(axis=1) > 0.5)
+            for s in ("Left", "Right")}
+
+
+@needs_data
+@pytest.mark.parametrize("path", WALKS, ids=lambda p: p.stem)
+def test_walks_import_retarget_and_skin(path):
+    m = motion_of(path)
+    assert m.rig.n_joints == 31 and m.activity == "walk"
+    hips = m.positions[:, 0]
+    travel = np.linalg.norm(hips[-1, :2] - hips[0, :2])
+    assert 3.5 <= travel <= 5.5
+    # 02_02 walks 4.55 m in 147 frames at 60 fps in the file itself (1.86 m/s): the bound allows it
+    assert 0.8 <= travel / m.duration <= 1.9
+    av = load_avatar("2k")
+    v = skin_vertices(av, m)
+    assert np.isfinite(v).all()
+    assert v[..., 2].min() >= -0.03  # nothing sinks into the floor
+    assert np.ptp(v[:, :, 2], axis=1).max() <= m.rig.height + 0.01
+    heads = v[:, :, 2].max(axis=1)
+    assert np.median(heads) > 0.9 * m.rig.height  # upright
+    stance = []
+    for side, idx in feet_vertices(av).items():
+        ankle = m.positions[:, m.rig.index(f"{side}Foot"), :2]
+        speed = np.linalg.norm(np.gradient(ankle, axis=0), axis=1) * m.fps
+        stance.append(v[speed < 0.25][:, idx, 2].min(axis=1))
+    lowest = np.concatenate(stance)
+    assert len(lowest) > 0.3 * m.n_frames
+    assert np.abs(lowest).max() <= 0.03  # planted feet touch the floor
+    # converter T-pose frames are detected, not listed
+    assert m.params["dropped_leading_frames"] == (1 if path.stem[:5] in ("07_03", "07_04", "07_05", "07_06") else 0)
+    assert m.params["units"] == "cm" and m.params["up"] == "y"
+
+
+@needs_data
+def test_c3d_stand_then_walk():
+    m = load_motion(C3D_WALK)
+    assert m.fps == 120.0 and m.params["format"] == "c3d" and m.params["units"] == "mm"
+    hips = m.positions[:, 0, :2]
+    speed = np.linalg.norm(np.gradient(hips, axis=0), axis=1) * m.fps
+    second = [speed[i:i + 120].mean() for i in range(0, m.n_frames - 119, 120)]
+    assert max(second[:6]) < 0.25  # standing first
+    walking = [k for k, s in enumerate(second) if s > 0.8]
+    assert walking and walking[0] >= 6  # then a walk
+    assert 3.0 < np.linalg.norm(hips[-1] - hips[0]) < 4.8
+    v = skin_vertices(load_avatar("2k"), m, frames=np.arange(0, m.n_frames, 10))
+    assert v[..., 2].min() > -0.03 and np.median(v[..., 2].max(axis=1)) > 0.9 * m.rig.height
+
+
+@needs_data
+def test_c3d_standing_take():
+    m = load_motion(C3D_STAND, height=1.7)
+    hips = m.positions[:, 0]
+    assert np.linalg.norm(hips[-1, :2] - hips[0, :2]) < 0.3
+    assert m.rig.height == 1.7
+
+
+def test_bvh_round_trip_cmu_rig_and_units(tmp_path):
+    t = np.arange(90) / 60.0
+    from test_skinning import smooth_motion
+    src = smooth_motion(t, 1.75)
+    src = type(src)(src.rig, 60.0, src.rotations, src.positions + [0, 0, 0.05])
+    for units in ("cm", "m", "mm"):
+        p = tmp_path / f"take_{units}.bvh"
+        write_bvh(src, p, units=units)
+        m = load_motion(p, align=False, floor=False)
+        assert m.params["units"] == units and m.params["rig"] == "cmu"
+        assert m.rig.height == pytest.approx(1.75, abs=1e-6)
+        np.testing.assert_allclose(m.rotations, src.rotations, atol=1e-5)
+        np.testing.assert_allclose(m.positions, src.positions, atol=1e-5)
+        grounded = load_motion(p)
+        assert grounded.params["floor"] and np.isfinite(grounded.positions).all()
+
+
+def _cut(text: str, marker: str, extra: int) -> str:
+    return text[: text.index(marker) + extra]
+
+
+@needs_data
+def test_truncated_and_corrupted_bvh(tmp_path):
+    text = WALKS[0].read_text()
+    lines = text.splitlines()
+    motion_line = lines.index("MOTION")
+    cases = {
+        "cut_in_motion.bvh": "\n".join(lines[: motion_line + 40]) + "\n0.1 0.2",
+        "cut_in_hierarchy.bvh": text[: len(text) // 40],
+        "fewer_frames.bvh": "\n".join(lines[: motion_line + 50]) + "\n",
+    }
+    garbled = list(lines)
+    row = garbled[motion_line + 20].split()
+    row[7] = "1.2.3e"
+    garbled[motion_line + 20] = " ".join(row)
+    cases["garbled.bvh"] = "\n".join(garbled) + "\n"
+    expect = {"cut_in_motion.bvh": rf"line {motion_line + 41}\b",
+              "cut_in_hierarchy.bvh": r"line \d+",
+              "fewer_frames.bvh": r"truncated",
+              "garbled.bvh": rf"line {motion_line + 21}, frame 17: not a number: '1\.2\.3e'"}
+    for name, body in cases.items():
+        p = tmp_path / name
+        p.write_text(body)
+        with pytest.raises(MotionImportError, match=re.escape(str(p))) as exc:
+            load_motion(p)
+        assert re.search(expect[name], str(exc.value)), str(exc.value)
+        assert isinstance(exc.value, ValueError)
+
+
+@needs_data
+def test_truncated_and_corrupted_c3d(tmp_path):
+    raw = C3D_WALK.read_bytes()
+    cut = tmp_path / "cut.c3d"
+    cut.write_bytes(raw[: len(raw) // 2 + 7])
+    with pytest.raises(MotionImportError, match=r"cut\.c3d, frame \d+: truncated: header says 1699 frames"):
+        load_motion(cut)
+    bad = bytearray(raw)
+    bad[512 + 4: 512 + 40] = b"garbage!" * 4 + b"abcd"  # parameter section
+    p = tmp_path / "garbled.c3d"
+    p.write_bytes(bytes(bad))
+    with pytest.raises(MotionImportError, match=r"garbled\.c3d: not a readable C3D file"):
+        load_motion(p)
+    p2 = tmp_path / "tiny.c3d"
+    p2.write_bytes(raw[:100])
+    with pytest.raises(MotionImportError, match=r"tiny\.c3d"):
+        load_motion(p2)
+    with pytest.raises(MotionImportError, match="unsupported motion file type"):
+        load_motion(tmp_path / "take.fbx")
+
+
+def _write_c3d_with_gap(path, frames):
+    import ezc3d
+    src = ezc3d.c3d(str(C3D_STAND))
+    pts = src["data"]["points"][:, :, :300].copy()
+    labels = list(src["parameters"]["POINT"]["LABELS"]["value"])
+    k = [lab.split(":")[-1] for lab in labels].index("LKNE")
+    pts[:3, k, frames] = np.nan
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [60.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = labels
+    c.add_parameter("POINT", "UNITS", ["mm"])
+    c["data"]["points"] = pts
+    c.write(str(path))
+
+
+@needs_data
+def test_c3d_marker_gaps(tmp_path):
+    short = tmp_path / "short_gap.c3d"
+    _write_c3d_with_gap(short, np.arange(100, 106))  # 0.1 s at 60 Hz
+    m = load_motion(short)
+    assert m.params["filled_gaps"] == {"LKNE": [[100, 105]]}
+    assert np.isfinite(m.positions).all()
+    long = tmp_path / "long_gap.c3d"
+    _write_c3d_with_gap(long, np.arange(100, 161))  # 1 s
+    with pytest.raises(MotionImportError, match=r"long_gap\.c3d: marker gaps longer than 0\.2 s: LKNE: frames 100-160"):
+        load_motion(long)
+    with pytest.warns(UserWarning, match="LKNE: frames 100-160"):
+        m2 = load_motion(long, on_long_gap="warn")
+    assert np.isfinite(m2.positions).all()
+    assert load_motion(long, max_gap_s=1.5).params["filled_gaps"] == {"LKNE": [[100, 160]]}
+
+
+@needs_data
+def test_units_and_up_axis_overrides():
+    auto = motion_of(WALKS[0])
+    given = load_motion(WALKS[0], units="cm", up="y", activity="walk")
+    np.testing.assert_allclose(given.positions, auto.positions)
+    m = load_motion(WALKS[0], fps=30.0, height=1.6)
+    assert m.fps == 30.0 and m.rig.height == 1.6
+    assert m.params["leg_ratio"] == pytest.approx(m.params["height"] / auto.params["height"], rel=1e-6)

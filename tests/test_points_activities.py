@@ -1,0 +1,57 @@
+"""The point backend on procedural activities: numbers derivable on paper."""
+import numpy as np
+import pytest
+from scipy.signal import find_peaks
+
+from processing.waveform import C0
+from rtchannel.backends.points import point_paths
+from rtchannel.motion.procedural import generate
+from rtchannel.radar import Link, RadarConfig
+from rtchannel.simulate import simulate
+from rtchannel.skeleton import JOINT_INDEX
+
+
+def test_point_delays_are_exact_geometry():
+    m = generate("sit", height=1.6)
+    radar = RadarConfig(links=[Link(name="mono", tx=(3, 0, 1.1)), Link(name="bi", tx=(3, 0, 1.1), rx=(0, -3, 1.1))])
+    paths = point_paths(m, radar)
+    # scatterer 0 is the head centre, half-way along the Head bone: compare through its own position
+    pos = m.attached_points(np.array([JOINT_INDEX["Head"]]), m.rig.rest[[JOINT_INDEX["Head"]]] +
+                            0.5 * (m.rig.tails[[JOINT_INDEX["Head"]]] - m.rig.rest[[JOINT_INDEX["Head"]]]))[:, 0]
+    np.testing.assert_allclose(paths["mono"].delays[:, 0], 2 * np.linalg.norm(pos - [3, 0, 1.1], axis=1) / C0, rtol=1e-12)
+    np.testing.assert_allclose(paths["bi"].delays[:, 0], (np.linalg.norm(pos - [3, 0, 1.1], axis=1)
+                                                          + np.linalg.norm(pos - [0, -3, 1.1], axis=1)) / C0, rtol=1e-12)
+    assert paths["mono"].n_paths == 21 and np.allclose(np.sum(np.abs(paths["mono"].gains[0]) ** 2), 1.0)
+
+
+@pytest.mark.parametrize("speed", [0.9, 1.3, 1.7])
+def test_walk_toward_radar_mean_velocity_equals_walking_speed(speed):
+    # Every body point moves at the walking speed on average, so eq. 8 averaged over whole gait
+    # cycles gives the speed (times cos of the small elevation angle to a far radar: > 0.99 here).
+    m = generate("walk", speed=speed, distance=5.0, pad_before=0.0, pad_after=0.0)
+    radar = RadarConfig(links=[Link(name="r", tx=(14.0, 0.0, 1.0))])
+    sig = simulate(m, radar).links["r"].signature
+    hips_v = np.gradient(m.positions[:, 0, 0], 1 / m.fps)
+    steady = np.flatnonzero(np.abs(hips_v - speed) < 0.25 * speed)
+    foot_z = m.positions[:, JOINT_INDEX["LeftFoot"], 2]
+    peaks, _ = find_peaks(foot_z[steady[0]:steady[-1]], prominence=0.02)
+    assert len(peaks) >= 2, "need at least one whole stride"
+    t0, t1 = m.times[steady[0] + peaks[0]], m.times[steady[0] + peaks[-1]]
+    sel = (sig.time >= t0) & (sig.time <= t1)
+    assert abs(sig.mean_velocity[sel].mean() - speed) < 0.10 * speed
+
+
+def test_fall_peak_mean_velocity_exceeds_sit():
+    radar = RadarConfig(links=[Link(name="r", tx=(3.0, 0.0, 1.1))])
+    peak = {a: np.abs(simulate(generate(a), radar).links["r"].signature.mean_velocity).max() for a in ("fall", "sit")}
+    assert peak["fall"] > peak["sit"]
+
+
+@pytest.mark.parametrize("activity", ["fall", "walk", "stand", "sit", "pick"])
+def test_every_activity_gives_finite_signatures(activity):
+    res = simulate(generate(activity, seed=2), RadarConfig().for_direction(7))
+    for link in res.links.values():
+        s = link.signature
+        assert np.isfinite(s.p_vt).all() and np.isfinite(s.mean_velocity).all()
+        assert s.valid.mean() > 0.5
+        assert np.abs(s.mean_velocity).max() < 6.3
