@@ -14,8 +14,12 @@ def bench_points(repeats: int = 7, duration: float = 5.0) -> dict:
     from rtchannel.radar import RadarConfig
     from rtchannel.simulate import simulate
 
+    from dataclasses import replace
+
     radar = RadarConfig()
-    motion = generate("walk", duration=duration, pad_before=0.0, pad_after=0.0)
+    full = generate("walk", duration=duration, pad_before=0.0, pad_after=0.0)
+    n = int(round(duration * full.fps)) + 1  # exactly `duration` seconds (the walk adds stop ramps)
+    motion = replace(full, positions=full.positions[:n], rotations=full.rotations[:n])
     simulate(motion, radar)  # warm-up: imports, FFT plans, caches
     runs = []
     for _ in range(repeats):

@@ -6,6 +6,7 @@ import sys
 import warnings
 from pathlib import Path
 
+import numpy as np
 from pydantic import ValidationError
 
 EXIT_USAGE = 2
@@ -22,40 +23,39 @@ def _validation_line(err: ValidationError, what: str) -> str:
     return f"{what}: {loc}: {first.get('msg', 'invalid value')}{more}"
 
 
+def _add_motion_args(p) -> None:
+    p.add_argument("--activity", default="walk", help="fall, walk, stand, sit or pick (default walk)")
+    p.add_argument("--motion-file", type=Path, help="BVH or C3D motion capture instead of a procedural motion")
+    p.add_argument("--height", type=float, default=1.75, help="body height [m] (default 1.75)")
+    p.add_argument("--speed", type=float, help="walking speed [m/s] (procedural walk only)")
+    p.add_argument("--duration", type=float, help="activity duration [s] (procedural)")
+    p.add_argument("--distance", type=float, help="walking distance [m] (procedural walk only, default 4)")
+    p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"),
+                   help="start of the hips' ground point [m]; default: walks are centred on the origin "
+                   "(toward Radar 1 at direction 1), other activities start at the origin")
+    p.add_argument("--fps", type=float, default=60.0, help="motion frame rate [Hz] (default 60)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
 def _add_simulate(sub) -> None:
     p = sub.add_parser("simulate", help="simulate one activity and write signature.h5 plus PNGs",
                        description="Simulate one activity through a scattering backend and the shared FMCW "
                        "synthesiser/DSP; writes DIR/signature.h5 and DIR/{pvt,mean_velocity,range}.png.")
-    p.add_argument("--activity", default="walk", help="fall, walk, stand, sit or pick (default walk)")
+    _add_motion_args(p)
     p.add_argument("--backend", default="points", help="scattering backend (default points)")
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--direction", type=int, default=1, help="seed direction 1..18 (Radar 1 at 20(k-1) deg)")
     g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z instead [deg]")
-    p.add_argument("--height", type=float, default=1.75, help="body height [m] (default 1.75)")
-    p.add_argument("--speed", type=float, help="walking speed [m/s] (walk only)")
-    p.add_argument("--duration", type=float, help="activity duration [s]")
-    p.add_argument("--distance", type=float, help="walking distance [m] (walk only, default 4)")
-    p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"),
-                   help="start of the hips' ground point [m]; default: walks are centred on the origin "
-                   "(toward Radar 1 at direction 1), other activities start at the origin")
-    p.add_argument("--fps", type=float, default=60.0, help="motion frame rate [Hz] (default 60)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--keep-iq", action="store_true", help="store raw IQ in signature.h5")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_simulate)
 
 
-def cmd_simulate(args) -> int:
-    from tqdm import tqdm
-
-    from processing.signature_file import write_signature_file
-    from rtchannel.motion.procedural import ProceduralParams, generate
-    from rtchannel.plots import plot_all
+def _load_radar(args):
     from rtchannel.radar import RadarConfig, direction_angles
-    from rtchannel.simulate import simulate
 
     if args.radar_config is not None and not args.radar_config.is_file():
         raise UserError(f"radar config file not found: {args.radar_config}")
@@ -64,7 +64,22 @@ def cmd_simulate(args) -> int:
     except ValidationError as e:
         raise UserError(_validation_line(e, f"radar config {args.radar_config}")) from None
     angle = args.angle_deg if args.angle_deg is not None else direction_angles(args.direction)[0]
-    radar = radar.rotated(angle)
+    return radar.rotated(angle), angle
+
+
+def _build_motion(args):
+    """The motion the user asked for: a motion-capture file or a procedural activity."""
+    if args.motion_file is not None:
+        from rtchannel.motion.load import load_motion
+
+        if not args.motion_file.is_file():
+            raise UserError(f"motion file not found: {args.motion_file}")
+        motion = load_motion(args.motion_file, height=args.height, activity=args.activity)
+        if args.start is not None:
+            motion = motion.transformed(0.0, offset=(*(np.asarray(args.start) - motion.positions[0, 0, :2]), 0.0))
+        return motion if args.fps == motion.fps else motion.resampled(args.fps)
+    from rtchannel.motion.procedural import ProceduralParams, generate
+
     overrides = {k: v for k, v in (("speed", args.speed), ("duration", args.duration),
                                    ("distance", args.distance)) if v is not None}
     if args.start is not None:
@@ -78,7 +93,18 @@ def cmd_simulate(args) -> int:
         params = ProceduralParams(height=args.height, fps=args.fps, seed=args.seed, **overrides)
     except ValidationError as e:
         raise UserError(_validation_line(e, "motion parameters")) from None
-    motion = generate(args.activity, params)
+    return generate(args.activity, params)
+
+
+def cmd_simulate(args) -> int:
+    from tqdm import tqdm
+
+    from processing.signature_file import write_signature_file
+    from rtchannel.plots import plot_all
+    from rtchannel.simulate import simulate
+
+    radar, angle = _load_radar(args)
+    motion = _build_motion(args)
 
     n_chirps = int(motion.duration / radar.waveform.pri_s + 1) * len(radar.links)
     with tqdm(total=n_chirps, unit="chirp", disable=args.quiet or None, desc=f"{args.activity}") as bar:
@@ -98,10 +124,43 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def _add_render(sub) -> None:
+    p = sub.add_parser("render", help="render the scene (skinned body, radars) to PNG/GIF",
+                       description="Render the skinned avatar at chosen frames with the radar positions "
+                       "(Mitsuba, the ray tracer's own renderer), plus an animation strip of the activity.")
+    _add_motion_args(p)
+    p.add_argument("--out", required=True, type=Path, help="scene PNG to write")
+    p.add_argument("--strip", type=Path, help="also write an animation strip (.png) or animation (.gif)")
+    p.add_argument("--frames", type=int, nargs="+", help="frame indices (default: 5 evenly spaced)")
+    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--direction", type=int, default=1, help="seed direction 1..18")
+    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z [deg]")
+    p.add_argument("--lod", default="10k", help="avatar level of detail: full, 10k, 5k, 2k (default 10k)")
+    p.set_defaults(func=cmd_render)
+
+
+def cmd_render(args) -> int:
+    from rtchannel.render import render_scene, render_strip
+
+    radar, _ = _load_radar(args)
+    motion = _build_motion(args)
+    frames = args.frames or list(np.linspace(0, motion.n_frames - 1, 5).round().astype(int))
+    bad = [f for f in frames if not 0 <= f < motion.n_frames]
+    if bad:
+        raise UserError(f"frames {bad} outside 0..{motion.n_frames - 1}")
+    antennas = [p for link in radar.links for p in {tuple(link.tx_pos), tuple(link.rx_pos)}]
+    print(f"wrote {render_scene(motion, frames, antennas, args.out, lod=args.lod)}")
+    if args.strip:
+        print(f"wrote {render_strip(motion, args.strip, radar_positions=antennas)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rtchannel", description="Motion-capture driven MIMO radar simulator.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_simulate(sub)
+    _add_render(sub)
     from rtchannel.bench_cli import add_bench
 
     add_bench(sub)
