@@ -162,7 +162,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simulate(sub)
     _add_render(sub)
     from rtchannel.bench_cli import add_bench
+    from rtchannel.classify_cli import add_classifier_commands
+    from rtchannel.compare_cli import add_compare
+    from rtchannel.dataset_cli import add_dataset
 
+    add_dataset(sub)
+    add_classifier_commands(sub)
+    add_compare(sub)
     add_bench(sub)
     return parser
 

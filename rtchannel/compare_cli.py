@@ -1,0 +1,5 @@
+"""`rtchannel compare` (placeholder)."""
+
+
+def add_compare(sub) -> None:
+    """Register the `compare` subcommand."""
