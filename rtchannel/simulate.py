@@ -12,7 +12,7 @@ from processing.synthesis import iter_synthesis
 from rtchannel.radar import RadarConfig
 from rtchannel.skeleton import Motion
 
-BACKENDS = ("points",)
+BACKENDS = ("points", "facets", "sionna")
 
 
 @dataclass
@@ -38,14 +38,24 @@ def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", *
         from rtchannel.backends.points import point_paths
 
         return point_paths(motion, radar, **options)
+    if backend == "facets":
+        from rtchannel.backends.facets import facet_paths
+
+        return facet_paths(motion, radar, **options)
+    if backend == "sionna":
+        from rtchannel.backends.sionna_rt import sionna_paths
+
+        return sionna_paths(motion, radar, **options)
     raise ValueError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
 
 
 def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool = False,
-                  progress=None, timing: dict | None = None) -> dict[str, LinkResult]:
+                  progress=None, timing: dict | None = None, synthesis: str = "auto",
+                  oversample: int = 8) -> dict[str, LinkResult]:
     """Synthesise raw IQ and compute signatures for every link's path set.
 
-    `progress` is an optional callable receiving the number of chirps done after each chunk.
+    `progress` is an optional callable receiving the number of chirps done after each chunk;
+    `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.iter_synthesis`).
     """
     timing = {} if timing is None else timing
     out = {}
@@ -53,7 +63,7 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
     for name, ps in paths.items():
         t0 = time.perf_counter()
         t_parts, iq_parts = [], []
-        for t, iq in iter_synthesis(ps, wf):
+        for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
             t_parts.append(t)
             iq_parts.append(iq)
             if progress is not None:
@@ -70,11 +80,14 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
 
 
 def simulate(motion: Motion, radar: RadarConfig, backend: str = "points", keep_iq: bool = False,
-             progress=None, **backend_options) -> SimulationResult:
-    """Run `motion` through `backend` and the shared synthesiser/DSP for every link of `radar`."""
+             progress=None, synthesis: str = "auto", **backend_options) -> SimulationResult:
+    """Run `motion` through `backend` and the shared synthesiser/DSP for every link of `radar`.
+
+    `backend_options` go to the backend (e.g. `lod`, `scene`, `walls` for the mesh backends).
+    """
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
     paths = backend_paths(motion, radar, backend, **backend_options)
     timing["backend"] = time.perf_counter() - t0
-    links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing)
+    links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing, synthesis=synthesis)
     return SimulationResult(links=links, timing=timing)

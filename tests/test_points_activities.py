@@ -21,7 +21,14 @@ def test_point_delays_are_exact_geometry():
     np.testing.assert_allclose(paths["mono"].delays[:, 0], 2 * np.linalg.norm(pos - [3, 0, 1.1], axis=1) / C0, rtol=1e-12)
     np.testing.assert_allclose(paths["bi"].delays[:, 0], (np.linalg.norm(pos - [3, 0, 1.1], axis=1)
                                                           + np.linalg.norm(pos - [0, -3, 1.1], axis=1)) / C0, rtol=1e-12)
-    assert paths["mono"].n_paths == 21 and np.allclose(np.sum(np.abs(paths["mono"].gains[0]) ** 2), 1.0)
+    assert paths["mono"].n_paths == 21
+    seed = point_paths(m, radar, scale="seed")["mono"]
+    assert np.allclose(np.sum(np.abs(seed.gains[0]) ** 2), 1.0)
+    # radar scale: P_r/P_t = lambda^2 sigma / ((4 pi)^3 R^4) with the head's share of the body RCS
+    r = np.linalg.norm(pos - [3, 0, 1.1], axis=1)
+    lam = radar.waveform.wavelength
+    expected = lam ** 2 * np.abs(seed.gains[0, 0]) ** 2 * 0.5 / ((4 * np.pi) ** 3 * r ** 4)
+    np.testing.assert_allclose(np.abs(paths["mono"].gains[:, 0]) ** 2, expected, rtol=1e-12)
 
 
 @pytest.mark.parametrize("speed", [0.9, 1.3, 1.7])

@@ -2,6 +2,12 @@
 
 Delay of scatterer l on link (tx, rx): tau_l(t) = (|C_l(t) - tx| + |C_l(t) - rx|) / c0, i.e. the
 bistatic radial distance is half the total path (seed Sect. IV-A); monostatic links reduce to 2 d / c0.
+
+Gain scales (`scale`):
+- "radar" (default): the common scale of all backends, the path coefficient of the radar equation with
+  isotropic unit-gain antennas, |a_l|^2 = P_r / P_t = lambda^2 sigma_l / ((4 pi)^3 R_tx^2 R_rx^2), with
+  sigma_l = g_l^2 sigma_body (the seed's area-fraction gains g_l, sum of squares 1, share the body RCS).
+- "seed": a_l = g_l, time-invariant and dimensionless, exactly the seed's model (no range loss).
 """
 from __future__ import annotations
 
@@ -25,8 +31,20 @@ def scatterer_trajectories(motion: Motion, scatterers: PointScatterers | None = 
     return motion.attached_points(sc.joints, sc.rest_points)
 
 
+# Whole-body monostatic RCS [m^2] shared by the 21 points on the "radar" scale. Measured human RCS at
+# K band is about -5..0 dBsm (e.g. Yamada et al., IEEE VTC 2005, 76 GHz: -8..-3 dBsm); 0.5 m^2 (-3 dBsm).
+BODY_RCS_M2 = 0.5
+
+
+def radar_amplitude(sigma, r_tx, r_rx, wavelength: float):
+    """Path coefficient a (|a|^2 = P_r/P_t, isotropic unit-gain antennas) of a target of RCS sigma [m^2]
+    at distances r_tx, r_rx [m] from transmitter and receiver: lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx)."""
+    return wavelength * np.sqrt(sigma) / ((4 * np.pi) ** 1.5 * np.asarray(r_tx) * np.asarray(r_rx))
+
+
 def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = None,
-                trajectories: np.ndarray | None = None) -> dict[str, PathSet]:
+                trajectories: np.ndarray | None = None, scale: str = "radar",
+                body_rcs_m2: float = BODY_RCS_M2) -> dict[str, PathSet]:
     """Persistent path sets (one per link) of the point scatterers.
 
     Args:
@@ -35,6 +53,9 @@ def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = N
         gains: amplitude gain per scatterer [M] (time-invariant, the seed's a_l); default: area-scaled.
         trajectories: scatterer positions [F, M, 3] (m); default: the skeleton-attached seed scatterers
             (the avatar's skin markers can be passed here instead).
+        scale: "radar" (gains^2 * body_rcs_m2 as RCS through the radar equation, range loss included)
+            or "seed" (gains as they are); see the module docstring.
+        body_rcs_m2: whole-body RCS [m^2] on the "radar" scale.
 
     Returns:
         {link name: PathSet} with path ids 0..M-1.
@@ -44,9 +65,16 @@ def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = N
     g = sc.gains if gains is None else np.asarray(gains, dtype=np.complex128)
     if g.shape != (traj.shape[1],):
         raise ValueError(f"gains must have one value per scatterer ({traj.shape[1]}), got shape {g.shape}")
+    if scale not in ("radar", "seed"):
+        raise ValueError(f"points gain scale must be 'radar' or 'seed', got {scale!r}")
     out = {}
     for link in radar.links:
-        tau = link_delays(traj, link.tx_pos, link.rx_pos)
-        out[link.name] = PathSet(times=motion.times, delays=tau, gains=np.broadcast_to(g, tau.shape).copy(),
-                                 ids=np.arange(traj.shape[1]), link=link.name)
+        r_tx = np.linalg.norm(traj - link.tx_pos, axis=-1)
+        r_rx = np.linalg.norm(traj - link.rx_pos, axis=-1)
+        tau = (r_tx + r_rx) / C0
+        gain = np.broadcast_to(g, tau.shape).copy()
+        if scale == "radar":
+            gain = gain * radar_amplitude(body_rcs_m2, r_tx, r_rx, radar.waveform.wavelength)
+        out[link.name] = PathSet(times=motion.times, delays=tau, gains=gain, ids=np.arange(traj.shape[1]),
+                                 link=link.name)
     return out
