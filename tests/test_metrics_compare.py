@@ -1,0 +1,57 @@
+"""Signature distances (paper values) and the `compare` command."""
+import csv
+
+import numpy as np
+import pytest
+
+from processing.metrics import mean_velocity_rmse, normalised_dtw, pvt_tv_distance
+from rtchannel.cli import main
+
+
+def test_dtw_of_constant_offset_is_the_offset():
+    # two constant curves c apart: every warping path has >= N steps of squared difference c^2 and the
+    # diagonal has exactly N, so DTW = sqrt(N) c and the normalised value is c / scale
+    a, b = np.zeros(50), np.full(50, 0.3)
+    assert normalised_dtw(a, b, scale=1.5) == pytest.approx(0.2, rel=1e-12)
+    assert normalised_dtw(a, b) == pytest.approx(1.0, rel=1e-12)  # default scale: peak |v| = 0.3
+
+
+def test_dtw_ignores_a_time_shift_that_rmse_sees():
+    t = np.linspace(0, 4, 200)
+    a = np.exp(-((t - 1.5) / 0.3) ** 2)
+    b = np.exp(-((t - 2.0) / 0.3) ** 2)
+    assert normalised_dtw(a, b) < 0.05
+    assert mean_velocity_rmse(a, b) > 0.3
+    assert normalised_dtw(np.zeros(5), np.zeros(7)) == 0.0
+
+
+def test_tv_distance_paper_values():
+    p = np.zeros((4, 3))
+    p[0] = 1.0
+    q = np.zeros((4, 3))
+    q[0, :2] = 1.0
+    q[1, 2] = 1.0            # last column: disjoint support -> TV 1
+    assert pvt_tv_distance(p, p * 7.0) == 0.0          # per-column normalisation: scale-free
+    assert pvt_tv_distance(p, q) == pytest.approx(1 / 3)
+    half = p.copy()
+    half[1] = 1.0            # columns (1/2, 1/2) vs (1, 0): TV 1/2
+    assert pvt_tv_distance(p, half) == pytest.approx(0.5)
+
+
+def test_compare_command_writes_table_and_figure(tmp_path):
+    out = tmp_path / "cmp"
+    code = main(["compare", "--backends", "points", "points", "--activities", "walk", "sit", "--out", str(out),
+                 "--option", "points.scale=seed", "--quiet"])
+    assert code == 0
+    rows = list(csv.reader((out / "dtw_points_vs_points.csv").open()))
+    assert rows[0][1:] == ["walk", "sit"] and [r[0] for r in rows[1:]] == ["walk", "sit"]
+    d = np.array([[float(x) for x in r[1:]] for r in rows[1:]])
+    assert d[0, 0] == 0.0 and d[1, 1] == 0.0 and d[0, 1] > 0.1 and d[1, 0] > 0.1
+    assert (out / "pvt_side_by_side.png").stat().st_size > 10_000
+
+
+def test_compare_rejects_bad_input(capsys):
+    assert main(["compare", "--backends", "points", "--out", "x"]) == 2
+    assert main(["compare", "--backends", "points", "points", "--option", "lod=2k", "--out", "x"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("error:") == 2 and "BACKEND.NAME=VALUE" in err
