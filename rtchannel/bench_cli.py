@@ -1,52 +1,95 @@
-"""`rtchannel bench`: speed of the simulation chain (medians over repeats, split per stage)."""
+"""`rtchannel bench`: speed of the simulation chain, and speed against error across backend settings."""
 from __future__ import annotations
 
 import json
 import statistics
 import time
+from dataclasses import replace
 from pathlib import Path
 
 
-def bench_points(repeats: int = 7, duration: float = 5.0) -> dict:
-    """Median wall time [s] of the points backend on a `duration`-s walk, two monostatic seed radars,
-    128 samples per chirp, raw IQ plus all signatures; with the split backend / synthesis / DSP."""
+def exact_duration_walk(duration: float, fps: float = 60.0):
+    """A procedural walk cut to exactly `duration` seconds (the generator adds start/stop ramps)."""
     from rtchannel.motion.procedural import generate
+
+    full = generate("walk", duration=duration, pad_before=0.0, pad_after=0.0, fps=fps)
+    n = int(round(duration * full.fps)) + 1
+    return replace(full, positions=full.positions[:n], rotations=full.rotations[:n])
+
+
+def bench_chain(backend: str = "points", repeats: int = 7, duration: float = 5.0, **options) -> dict:
+    """Median wall time [s] of one backend on a `duration`-s walk, two monostatic seed radars,
+    128 samples per chirp, raw IQ plus all signatures; with the split backend / synthesis / DSP."""
     from rtchannel.radar import RadarConfig
     from rtchannel.simulate import simulate
 
-    from dataclasses import replace
-
     radar = RadarConfig()
-    full = generate("walk", duration=duration, pad_before=0.0, pad_after=0.0)
-    n = int(round(duration * full.fps)) + 1  # exactly `duration` seconds (the walk adds stop ramps)
-    motion = replace(full, positions=full.positions[:n], rotations=full.rotations[:n])
-    simulate(motion, radar)  # warm-up: imports, FFT plans, caches
+    motion = exact_duration_walk(duration)
+    simulate(motion, radar, backend=backend, **options)  # warm-up: imports, scene, kernels, FFT plans
     runs = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        res = simulate(motion, radar, keep_iq=True)
+        res = simulate(motion, radar, backend=backend, keep_iq=True, **options)
         runs.append({"total": time.perf_counter() - t0, **res.timing})
     med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
-    sim_s = motion.duration
-    return {"benchmark": "points", "simulated_s": sim_s, "repeats": repeats, "median_s": med,
-            "speed_x_real_time": sim_s / med["total"], "links": len(radar.links),
+    return {"benchmark": backend, "options": options, "simulated_s": motion.duration, "repeats": repeats,
+            "median_s": med, "speed_x_real_time": motion.duration / med["total"], "links": len(radar.links),
             "samples_per_chirp": radar.waveform.samples_per_chirp}
 
 
+def bench_points(repeats: int = 7, duration: float = 5.0) -> dict:
+    """`bench_chain` of the points backend (kept for the benchmarks/ script)."""
+    return bench_chain("points", repeats, duration)
+
+
 def cmd_bench(args) -> int:
-    result = bench_points(repeats=args.repeats, duration=args.duration)
-    text = json.dumps(result, indent=2)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text + "\n")
+    from rtchannel.cli import UserError
+    from rtchannel.compare_cli import _parse_options
+
+    if args.chain:
+        options = _parse_options(args.option).get(args.chain, {})
+        result = bench_chain(args.chain, repeats=args.repeats, duration=args.duration, **options)
+        text = json.dumps(result, indent=2)
+        print(text)
+        if args.out:
+            args.out.mkdir(parents=True, exist_ok=True)
+            (args.out / f"bench_{args.chain}.json").write_text(text + "\n")
+        return 0
+    from tqdm import tqdm
+
+    from rtchannel.radar import RadarConfig
+    from rtchannel.speed_error import QUICK, REFERENCE, SWEEP, Setting, sweep, write_outputs
+
+    if args.out is None:
+        raise UserError("the speed/error sweep needs --out DIR")
+    settings = QUICK if args.quick else SWEEP
+    reference = REFERENCE if not args.quick else Setting("facets full LOD, walls", "facets", {"lod": "full"})
+    motion = exact_duration_walk(args.duration)
+    radar = RadarConfig()
+    with tqdm(total=len(settings) + 1, unit="setting", disable=args.quiet or None) as bar:
+        rows = sweep(motion, radar, settings, reference, repeats=args.repeats, progress=bar.update)
+    meta = {"activity": f"{args.duration:g} s walk, 2 monostatic radars", "repeats": args.repeats,
+            "reference": reference.label}
+    for p in write_outputs(rows, args.out, meta):
+        print(f"wrote {p}")
+    print((args.out / "speed_error.md").read_text())
     return 0
 
 
 def add_bench(sub) -> None:
-    p = sub.add_parser("bench", help="time the simulation chain (medians, per-stage split)",
-                       description="Time the points backend on a procedural walk with the seed's two "
-                       "monostatic radars: raw IQ plus all signatures; prints medians as JSON.")
-    p.add_argument("--repeats", type=int, default=7, help="timed repeats (default 7)")
-    p.add_argument("--duration", type=float, default=5.0, help="simulated activity length [s] (default 5)")
-    p.add_argument("--out", type=Path, help="also write the JSON here")
+    """Register the `bench` subcommand."""
+    p = sub.add_parser("bench", help="speed against error of backend settings (or time one chain)",
+                       description="Default: sweep backend settings (backend, LOD, trace rate, rays, depth, "
+                       "walls) on a procedural walk with the two seed radars, measure wall time per simulated "
+                       "second and the error of p(v,t) and mean velocity against a Sionna RT reference; "
+                       "writes speed_error.{csv,md,png,json}. With --chain BACKEND: time one backend's "
+                       "whole chain (medians, per-stage split) as JSON.")
+    p.add_argument("--chain", metavar="BACKEND", help="time only this backend's chain (points, facets, sionna)")
+    p.add_argument("--option", action="append", metavar="BACKEND.NAME=VALUE", help="backend option for --chain")
+    p.add_argument("--quick", action="store_true",
+                   help="sweep without Sionna (reference: facets on the full mesh); minutes instead of an hour")
+    p.add_argument("--repeats", type=int, default=3, help="timed repeats per setting (default 3)")
+    p.add_argument("--duration", type=float, default=5.0, help="simulated walk length [s] (default 5)")
+    p.add_argument("--out", type=Path, help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_bench)

@@ -55,3 +55,11 @@ def test_compare_rejects_bad_input(capsys):
     assert main(["compare", "--backends", "points", "points", "--option", "lod=2k", "--out", "x"]) == 2
     err = capsys.readouterr().err
     assert err.count("error:") == 2 and "BACKEND.NAME=VALUE" in err
+
+
+def test_pareto_front():
+    from rtchannel.speed_error import pareto_front
+
+    cost = np.array([1.0, 2.0, 3.0, 0.5, 2.5])
+    err = np.array([0.5, 0.2, 0.1, 0.9, 0.3])   # (2.5, 0.3) is beaten by (2.0, 0.2)
+    assert list(pareto_front(cost, err)) == [3, 0, 1, 2]
