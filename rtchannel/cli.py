@@ -42,7 +42,11 @@ def _add_simulate(sub) -> None:
                        description="Simulate one activity through a scattering backend and the shared FMCW "
                        "synthesiser/DSP; writes DIR/signature.h5 and DIR/{pvt,mean_velocity,range}.png.")
     _add_motion_args(p)
-    p.add_argument("--backend", default="points", help="scattering backend (default points)")
+    p.add_argument("--backend", default="points", help="scattering backend: points, facets or sionna (default points)")
+    p.add_argument("--scene", help="mesh backends: room, free_space or a Mitsuba XML file (default room)")
+    p.add_argument("--lod", help="mesh backends: avatar level of detail full, 10k, 5k, 2k (default 10k)")
+    p.add_argument("--option", action="append", metavar="NAME=VALUE",
+                   help="any other backend option, e.g. walls=false, trace_fps=30, samples_per_src=100000")
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
     g = p.add_mutually_exclusive_group()
@@ -96,21 +100,52 @@ def _build_motion(args):
     return generate(args.activity, params)
 
 
+def _backend_options(args) -> dict:
+    """Backend keyword options from --scene/--lod/--option (values parsed as YAML scalars)."""
+    import yaml
+
+    from rtchannel.simulate import BACKENDS
+
+    if args.backend not in BACKENDS:
+        raise UserError(f"unknown backend '{args.backend}'; choose one of {', '.join(BACKENDS)}")
+    opts = {}
+    for item in args.option or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise UserError(f"--option must look like NAME=VALUE, got '{item}'")
+        opts[name] = yaml.safe_load(value)
+    for name in ("scene", "lod"):
+        if getattr(args, name) is not None:
+            if args.backend == "points":
+                raise UserError(f"--{name} applies to the mesh backends (facets, sionna), not points")
+            opts[name] = getattr(args, name)
+    return opts
+
+
 def cmd_simulate(args) -> int:
+    import inspect
+
     from tqdm import tqdm
 
     from processing.signature_file import write_signature_file
     from rtchannel.plots import plot_all
-    from rtchannel.simulate import simulate
+    from rtchannel.simulate import backend_function, simulate
 
+    options = _backend_options(args)
+    accepted = inspect.signature(backend_function(args.backend)).parameters
+    unknown = [k for k in options if k not in accepted or k in ("motion", "radar")]
+    if unknown:
+        raise UserError(f"backend '{args.backend}' has no option '{unknown[0]}'")
     radar, angle = _load_radar(args)
     motion = _build_motion(args)
 
     n_chirps = int(motion.duration / radar.waveform.pri_s + 1) * len(radar.links)
     with tqdm(total=n_chirps, unit="chirp", disable=args.quiet or None, desc=f"{args.activity}") as bar:
-        result = simulate(motion, radar, backend=args.backend, keep_iq=args.keep_iq, progress=bar.update)
+        result = simulate(motion, radar, backend=args.backend, keep_iq=args.keep_iq, progress=bar.update,
+                          **options)
     sigs = {name: r.signature for name, r in result.links.items()}
     config = {"motion": motion.params, "radar": radar.model_dump(mode="json"), "backend": args.backend,
+              "backend_options": options,
               "angle_deg": angle, "direction": None if args.angle_deg is not None else args.direction}
     link_attrs = {link.name: {"tx": link.tx_pos, "rx": link.rx_pos} for link in radar.links}
     out = write_signature_file(

@@ -32,21 +32,26 @@ class SimulationResult:
     timing: dict[str, float] = field(default_factory=dict)
 
 
-def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", **options) -> dict[str, PathSet]:
-    """Path sets per link from the named backend."""
+def backend_function(backend: str):
+    """The path-set function of the named backend (imported on demand: the mesh backends load Mitsuba)."""
     if backend == "points":
         from rtchannel.backends.points import point_paths
 
-        return point_paths(motion, radar, **options)
+        return point_paths
     if backend == "facets":
         from rtchannel.backends.facets import facet_paths
 
-        return facet_paths(motion, radar, **options)
+        return facet_paths
     if backend == "sionna":
         from rtchannel.backends.sionna_rt import sionna_paths
 
-        return sionna_paths(motion, radar, **options)
+        return sionna_paths
     raise ValueError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+
+
+def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", **options) -> dict[str, PathSet]:
+    """Path sets per link from the named backend."""
+    return backend_function(backend)(motion, radar, **options)
 
 
 def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool = False,
