@@ -1,0 +1,53 @@
+"""`facets` against the `sionna` reference on the same walk, walls off (free space), diffuse skin.
+
+Both use Sionna RT's diffuse model for the default skin (Lambertian, S = 0.5, Gabriel dry skin); Sionna's
+specular term is off: monostatically it finds no body specular path (see test_sionna_backend) and only
+thins the diffuse sampling.
+"""
+import numpy as np
+import pytest
+
+from rtchannel.backends.facets import facet_paths
+from rtchannel.backends.sionna_rt import sionna_paths
+from rtchannel.motion.procedural import generate
+from rtchannel.radar import Link, RadarConfig
+from rtchannel.simulate import process_paths
+
+
+@pytest.fixture(scope="module")
+def walk_paths():
+    m = generate("walk", duration=1.5, start=(-1.0, 0.0), pad_before=0.2, pad_after=0.2)
+    radar = RadarConfig(links=[Link(name="r1", tx=(3.0, 0.0, 1.1)), Link(name="r2", tx=(0.0, -3.0, 1.1))])
+    pf = facet_paths(m, radar, scene="free_space", lod="2k", walls=False, trace_fps=20)
+    ps = sionna_paths(m, radar, scene="free_space", lod="2k", trace_fps=20, samples_per_src=200_000,
+                      specular=False)
+    return radar, pf, ps
+
+
+def test_total_body_power_within_2db(walk_paths):
+    _, pf, ps = walk_paths
+    for name in pf:
+        a, b = pf[name], ps[name]
+        idx = np.searchsorted(a.times, b.times - 1e-9)
+        np.testing.assert_allclose(a.times[idx], b.times, atol=1e-9)  # the same frames
+        pa = np.sum(np.abs(a.gains[idx]) ** 2, axis=1)
+        pb = np.sum(np.abs(b.gains) ** 2, axis=1)
+        db = 10 * np.log10(pb / pa)
+        # The issue's 2 dB per frame (measured: within 0.1 dB, the same diffuse model on the same mesh).
+        assert np.all(np.abs(db) < 2.0), f"{name}: {db}"
+
+
+def test_walk_mean_velocity_rmse(walk_paths):
+    radar, pf, ps = walk_paths
+    ra, rb = process_paths(pf, radar), process_paths(ps, radar)
+    for name in ra:
+        sa, sb = ra[name].signature, rb[name].signature
+        n = min(len(sa.time), len(sb.time))  # sionna's last traced frame may end one window earlier
+        np.testing.assert_allclose(sa.time[:n], sb.time[:n])
+        ok = sa.valid[:n] & sb.valid[:n]
+        assert ok.sum() > 0.9 * n
+        rmse = np.sqrt(np.mean((sa.mean_velocity[:n][ok] - sb.mean_velocity[:n][ok]) ** 2))
+        # The issue's 0.15 m/s (measured 0.12 radar 1, 0.07 radar 2 at 2e5 rays: Monte-Carlo diffuse
+        # sampling against every facet); a sign or Doppler-scale error gives ~1 m/s.
+        assert rmse < 0.15, f"{name}: RMSE {rmse:.3f} m/s"
+        assert np.max(np.abs(sa.mean_velocity[:n][ok])) > 0.3  # the walk is really seen moving

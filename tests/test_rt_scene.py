@@ -1,0 +1,99 @@
+"""The shared ray-tracing scene: scene files, walls, in-place body updates, ray casts, clearance."""
+import numpy as np
+import pytest
+
+from rtchannel.rt_scene import SCENES, RadarPlacementError, RTScene, SkinMaterial, gabriel_dry_skin, get_scene
+
+
+def _box_mesh(centre, half):
+    """Closed axis-aligned box [8 vertices, 12 outward triangles]."""
+    c, h = np.asarray(centre, float), np.asarray(half, float)
+    v = c + h * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    return v, f
+
+
+@pytest.fixture(scope="module")
+def room():
+    return get_scene("room", "2k", 1.75, 24.125e9)
+
+
+def test_skin_default_is_gabriel_dry_skin():
+    eps, sig = gabriel_dry_skin(24.125e9)
+    # Gabriel 1996 dry skin near 24 GHz: eps' ~ 19, sigma ~ 23 S/m (dominated by the 7.2 ps water pole);
+    # 5 % bands catch a wrong pole or unit without restating the formula.
+    assert abs(eps - 18.9) < 0.05 * 18.9 and abs(sig - 22.9) < 0.05 * 22.9
+    assert SkinMaterial().relative_permittivity == pytest.approx(eps)
+    with pytest.raises(ValueError, match="scattering pattern"):
+        SkinMaterial(scattering_pattern="mirror")
+
+
+def test_room_walls(room):
+    walls = {w.name: w for w in room.walls}
+    assert set(walls) == {"floor", "wall_xp", "wall_xn", "wall_yp", "wall_yn"}
+    expect = {"floor": ((0, 0, 0), (0, 0, 1)), "wall_xp": ((4, 0, 1.5), (-1, 0, 0)),
+              "wall_xn": ((-4, 0, 1.5), (1, 0, 0)), "wall_yp": ((0, 4, 1.5), (0, -1, 0)),
+              "wall_yn": ((0, -4, 1.5), (0, 1, 0))}
+    for name, (p, n) in expect.items():
+        w = walls[name]
+        # float32 scene geometry: 1e-5 m / 1e-6 is far below any physical effect and above rounding.
+        np.testing.assert_allclose(w.point, p, atol=1e-5)
+        np.testing.assert_allclose(w.normal, n, atol=1e-6)
+        assert w.area == pytest.approx(64.0 if name == "floor" else 24.0, rel=1e-5)
+        # ITU-R P.2040 concrete: eps' = 5.24, sigma = 0.0462 f_GHz^0.7822 S/m.
+        sigma = 0.0462 * 24.125 ** 0.7822
+        assert w.relative_permittivity.real == pytest.approx(5.24, rel=1e-5)
+        assert -w.relative_permittivity.imag == pytest.approx(sigma / (2 * np.pi * 24.125e9 * 8.8541878e-12), rel=1e-3)
+
+
+def test_free_space_has_only_the_body():
+    sc = get_scene("free_space", "2k", 1.75, 24.125e9)
+    assert sc.walls == [] and list(sc.sionna_scene.objects) == ["body"]
+    r = sc.cast(np.array([[3.0, 0, 1.1], [3.0, 0, 1.1]]), np.array([[-1.0, 0, 0], [1.0, 0, 0]]))
+    assert r["hit"].tolist() == [True, False] and r["body"].tolist() == [True, False]
+    assert r["t"][1] == np.inf and r["prim"][1] == -1
+
+
+def test_set_body_moves_geometry(room):
+    rest = room.body_vertices.copy()
+    o, d = np.array([[3.0, 0.0, 1.1]]), np.array([[-1.0, 0.0, 0.0]])
+    t0 = room.cast(o, d)
+    assert t0["body"][0]
+    room.set_body(rest + [0.5, 0.0, 0.0])
+    t1 = room.cast(o, d)
+    room.set_body(rest)
+    # The same triangle is hit 0.5 m earlier; float32 ray tracing at ~3 m is good to ~1 um.
+    assert t1["body"][0] and t1["prim"][0] == t0["prim"][0]
+    assert t0["t"][0] - t1["t"][0] == pytest.approx(0.5, abs=1e-5)
+    assert room.cast(o, d)["t"][0] == pytest.approx(t0["t"][0], abs=1e-6)
+    with pytest.raises(ValueError, match="shape"):
+        room.set_body(rest[:10])
+
+
+def test_clearance(room):
+    room.check_clearance(np.array([[3.0, 0.0, 1.1], [0.0, -3.0, 1.1]]))
+    with pytest.raises(RadarPlacementError, match=r"0\.50 cm from 'wall_xp'"):
+        room.check_clearance(np.array([[3.995, 0.0, 1.1]]))
+    top = room.body_vertices[np.argmax(room.body_vertices[:, 2])]
+    with pytest.raises(RadarPlacementError, match="'body'"):
+        room.check_clearance(top + [0, 0, 0.004])
+
+
+def test_user_scene_with_box(tmp_path):
+    xml = SCENES["room"].read_text().replace(
+        "</scene>", '<shape type="cube" id="table"><transform name="to_world"><scale value="0.5"/>'
+                    '<translate x="-2" y="1" z="0.5"/></transform><ref id="concrete" name="bsdf"/></shape></scene>')
+    path = tmp_path / "furnished.xml"
+    path.write_text(xml)
+    v, f = _box_mesh((0, 0, 1), (0.2, 0.2, 0.2))
+    sc = RTScene(path, f, v, 24.125e9)
+    # The bottom face lies on the floor plane, so it is oriented like the floor (+z) too.
+    tops = [w for w in sc.walls if w.name.startswith("table") and w.normal[2] > 0.99 and w.point[2] > 0.5]
+    assert len(tops) == 1 and tops[0].point[2] == pytest.approx(1.0, abs=1e-5)
+    assert tops[0].area == pytest.approx(1.0, rel=1e-5)
+    assert len([w for w in sc.walls if w.name.startswith("table")]) == 6  # bottom face too (it is 1 m^2)
+    hit = sc.cast(np.array([[-2.0, 1.0, 2.5]]), np.array([[0.0, 0.0, -1.0]]))
+    assert hit["hit"][0] and not hit["body"][0] and hit["t"][0] == pytest.approx(1.5, abs=1e-5)
+    with pytest.raises(ValueError, match="neither"):
+        RTScene(tmp_path / "missing.xml", f, v, 24.125e9)
