@@ -9,10 +9,12 @@ from pathlib import Path
 
 
 def exact_duration_walk(duration: float, fps: float = 60.0):
-    """A procedural walk cut to exactly `duration` seconds (the generator adds start/stop ramps)."""
+    """A procedural walk toward Radar 1 cut to exactly `duration` seconds (the generator adds start/stop
+    ramps): at 1 m/s from (-3, 0) m, so a 5 s walk stays 1 m clear of the radar and the room's walls."""
     from rtchannel.motion.procedural import generate
 
-    full = generate("walk", duration=duration, pad_before=0.0, pad_after=0.0, fps=fps)
+    full = generate("walk", duration=duration, speed=1.0, start=(-3.0, 0.0), pad_before=0.0, pad_after=0.0,
+                    fps=fps)
     n = int(round(duration * full.fps)) + 1
     return replace(full, positions=full.positions[:n], rotations=full.rotations[:n])
 
