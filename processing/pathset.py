@@ -25,7 +25,9 @@ class PathSet:
     Attributes:
         times: frame times t_k [K] in seconds, strictly increasing.
         delays: propagation delays tau [K, P] in seconds (float64); NaN where a path is absent.
-        gains: complex amplitude gains [K, P] (no propagation phase); 0 where a path is absent.
+        gains: complex amplitude gains [K, P] (no propagation phase); 0 where a path is absent. In the
+            synthesiser's convention (multiplied by exp(+j 2 pi f tau), beat = tx x conj(rx)): the complex
+            conjugate of a channel coefficient such as Sionna RT's `a`; |gain|^2 = P_r / P_t.
         ids: stable path identities [P] (int64), or None for frame-local paths.
         delay_rates: d tau / dt [K, P] (dimensionless, s/s), or None. Required for Doppler of
             frame-local paths; optional for persistent ones (then used for Hermite interpolation).

@@ -249,6 +249,11 @@ class RTScene:
         if pos.shape != verts.shape or not np.allclose(pos, verts, atol=1e-4):
             raise RuntimeError("the body mesh was reordered on load; in-place vertex updates would be wrong")
 
+    @property
+    def static_meshes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """(name, vertices [V, 3] m, faces [T, 3]) of every static shape."""
+        return [(n, v, f) for n, v, f, _ in self._static]
+
     def _static_meshes(self, mi, dr) -> list[tuple[str, np.ndarray, np.ndarray, object]]:
         out = []
         for name, obj in self.sionna_scene.objects.items():

@@ -71,7 +71,7 @@ def monostatic_rcs(backend: BackendFn, vertices: np.ndarray, faces: np.ndarray, 
     a, tau = ps.gains[0][present], ps.delays[0][present]
     r = C0 * tau / 2
     k = (4 * np.pi) ** 3 / lam ** 2
-    coherent = np.sum(a * (r / distance) ** 2 * np.exp(-2j * np.pi * frequency_hz * tau))
+    coherent = np.sum(a * (r / distance) ** 2 * np.exp(2j * np.pi * frequency_hz * tau))  # synthesiser's convention
     return {"sigma": float(k * np.sum(np.abs(a) ** 2 * r ** 4)),
             "coherent": float(k * distance ** 4 * np.abs(coherent) ** 2), "n_paths": int(present.sum())}
 

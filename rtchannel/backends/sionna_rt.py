@@ -277,7 +277,8 @@ def trace_frames(rt_scene: RTScene, radar: RadarConfig, times: np.ndarray, verti
                     vel[hit] = _velocity_at(verts_sel[hit], res["prims"][sel][hit], res["types"][sel][hit],
                                             vertices[k], velocities[k], faces)
                 tau, rate = path_geometry(lk.tx_pos, lk.rx_pos, verts_sel, res["types"][sel], hit, vel)
-                per_link[lk.name].append((tau, res["a"][sel], rate))
+                # the synthesiser multiplies by exp(+j 2 pi f tau) (beat = tx x conj(rx)): conj of Sionna's a
+                per_link[lk.name].append((tau, np.conj(res["a"][sel]), rate))
         if progress is not None:
             progress(1)
     out = {}

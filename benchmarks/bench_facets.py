@@ -1,0 +1,63 @@
+"""Benchmark (issue 3): `facets` backend only (no synthesis), 5 s walk, two monostatic seed radars, room with
+walls, 10k-triangle body. Reports median wall time per stage and the path counts, for a few settings of the
+speed knobs (trace_fps, walls, LOD, gain threshold). Goal: well under 1.5 s at the default setting.
+
+The walk is `rtchannel.bench_cli.exact_duration_walk(5.0)`: hips from x = -3 m to 1.3 m along y = 0 (the
+same motion as the chain benchmark), 1.7 m short of Radar 1.
+Run: .venv/bin/python benchmarks/bench_facets.py [--repeats 3] [--quick]
+The machine is shared: timings are noisy; medians over repeats are reported.
+"""
+import argparse
+import json
+import statistics
+import time
+
+from rtchannel.backends.facets import facet_paths
+from rtchannel.bench_cli import exact_duration_walk
+from rtchannel.radar import RadarConfig
+from rtchannel.rt_scene import get_scene
+
+SETTINGS = [
+    {"lod": "10k", "walls": True},
+    {"lod": "10k", "walls": True, "trace_fps": 20.0},
+    {"lod": "10k", "walls": True, "trace_fps": 10.0},
+    {"lod": "10k", "walls": True, "trace_fps": 10.0, "min_relative_gain_db": -30.0},
+    {"lod": "10k", "walls": True, "trace_fps": 5.0, "min_relative_gain_db": -30.0},
+    {"lod": "10k", "walls": False, "trace_fps": 10.0},
+    {"lod": "10k", "walls": False, "trace_fps": 5.0},
+    {"lod": "5k", "walls": True, "trace_fps": 10.0},
+    {"lod": "2k", "walls": True, "trace_fps": 10.0},
+]
+
+
+def run(setting: dict, repeats: int) -> dict:
+    motion = exact_duration_walk(5.0)
+    radar = RadarConfig()
+    get_scene("room", setting["lod"], motion.rig.height, radar.waveform.carrier_hz)  # load once, not timed
+    facet_paths(motion, radar, scene="room", **setting)  # warm-up: numba/Dr.Jit kernels
+    runs = []
+    for _ in range(repeats):
+        timing = {}
+        t0, c0 = time.perf_counter(), time.process_time()
+        paths = facet_paths(motion, radar, scene="room", timing=timing, **setting)
+        runs.append({"total": time.perf_counter() - t0, "cpu_total": time.process_time() - c0, **timing})
+    med = {k: round(statistics.median(r[k] for r in runs), 4) for k in runs[0]}
+    counts = {name: ps.n_paths for name, ps in paths.items()}
+    present = {name: round(float((ps.gains != 0).sum(axis=1).mean()), 1) for name, ps in paths.items()}
+    return {"setting": setting, "median_s": med, "paths": counts, "mean_present_per_frame": present,
+            "frames": motion.n_frames, "simulated_s": motion.duration}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="only the 10k, walls, trace_fps=10 setting")
+    ap.add_argument("--skip-full-rate", action="store_true", help="skip the slow every-frame setting")
+    args = ap.parse_args()
+    settings = SETTINGS[2:3] if args.quick else SETTINGS[1:] if args.skip_full_rate else SETTINGS
+    for setting in settings:
+        print(json.dumps(run(setting, args.repeats)), flush=True)
+
+
+if __name__ == "__main__":
+    main()

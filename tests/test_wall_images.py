@@ -1,0 +1,101 @@
+"""Image-source multipath of the `facets` backend: mirror geometry, validity, merging, Fresnel factors."""
+import numpy as np
+import pytest
+
+from processing.waveform import C0
+from rtchannel.backends.facets import facet_paths
+from rtchannel.backends.surface_scattering import fresnel, slab_reflection
+from rtchannel.backends.wall_images import PlanarWall, in_convex_polygon, mirror, reflection_points
+from rtchannel.motion.procedural import generate
+from rtchannel.radar import Link, RadarConfig
+from rtchannel.rt_scene import get_scene
+from rtchannel.skeleton import Motion
+from rtchannel.avatar import load_avatar
+from rtchannel.skinning import skin_vertices
+
+LOD = "2k"
+WALL = PlanarWall("w", point=np.array([4.0, 0.0, 1.5]), normal=np.array([-1.0, 0.0, 0.0]),
+                  polygon=np.array([[4, -4, 0], [4, 4, 0], [4, 4, 3], [4, -4, 3]], float),
+                  relative_permittivity=5.24 - 0.4j, thickness=0.2)
+
+
+def _short_motion(n_frames=3, offset=(0.0, 0.0, 0.0)) -> Motion:
+    m = generate("walk", duration=1.0, start=(-1.0, 0.5))
+    return Motion(m.rig, m.fps, m.rotations[:n_frames], m.positions[:n_frames] + np.asarray(offset))
+
+
+def test_mirror_and_reflection_point_validity():
+    src = np.array([3.0, 1.0, 1.0])
+    assert np.allclose(mirror(src, WALL), [5.0, 1.0, 1.0])
+    pts = np.array([[0.0, 0.0, 1.0], [3.9, 20.0, 1.0], [5.0, 0.0, 1.0]])
+    image, q, valid = reflection_points(pts, src, WALL)
+    # First: q on the wall inside the polygon; second: q far outside (y ~ 14 m); third: behind the wall.
+    assert valid.tolist() == [True, False, False]
+    assert q[0][0] == pytest.approx(4.0, abs=1e-12)
+    # The path via q is as long as the straight line from the image (mirror geometry).
+    assert (np.linalg.norm(pts[0] - q[0]) + np.linalg.norm(q[0] - src)) == pytest.approx(
+        np.linalg.norm(pts[0] - image), rel=1e-14)
+    assert in_convex_polygon(np.array([[4.0, 3.9, 2.9], [4.0, 4.1, 1.0]]), WALL).tolist() == [True, False]
+
+
+def test_fresnel_limits():
+    r_te, r_tm = fresnel(np.array([1.0, 0.3]), None)
+    assert np.allclose(r_te, -1) and np.allclose(r_tm, 1)
+    eta = 5.24 - 0.4j
+    r_te, r_tm = fresnel(1.0, eta)
+    assert r_te == pytest.approx((1 - np.sqrt(eta)) / (1 + np.sqrt(eta)), rel=1e-12)
+    assert r_tm == pytest.approx(-r_te, rel=1e-12)  # normal incidence: no plane of incidence
+    # A slab many skin depths thick reflects like the half-space (skin at 24 GHz: eta = 18.9 - 17.1 j).
+    skin = 18.9 - 17.1j
+    assert np.allclose(slab_reflection(0.6, skin, 0.05, 0.0124), fresnel(0.6, skin), atol=1e-9)
+
+
+def test_image_extra_delay_equals_mirror_geometry():
+    m = _short_motion()
+    tx = np.array([3.0, 0.0, 1.1])
+    radar = RadarConfig(links=[Link(name="r", tx=tuple(tx))])
+    scene = get_scene("room", LOD, m.rig.height, radar.waveform.carrier_hz)
+    ps = facet_paths(m, radar, scene=scene, lod=LOD, walls=True)["r"]
+    n_faces = len(scene.body_faces)
+    av = load_avatar(LOD)
+    verts = skin_vertices(av, m, [0])[0]
+    cent = verts[av.faces].mean(axis=1)
+    names = [w.name for w in scene.walls]
+    # Analytic images: floor z = 0, wall_xp x = 4.
+    images = {"floor": tx * [1, 1, -1], "wall_xp": np.array([8.0 - tx[0], tx[1], tx[2]])}
+    direct = {i: k for k, i in enumerate(ps.ids) if i < n_faces}
+    checked = 0
+    for name, image in images.items():
+        kind = 1 + 2 * names.index(name)
+        cols = np.flatnonzero((ps.ids // n_faces == kind) & (ps.gains[0] != 0))
+        assert cols.size > 20  # the floor and the wall behind the radar both light the body
+        for col in cols:
+            f = ps.ids[col] % n_faces
+            extra = ps.delays[0, col] - ps.delays[0, direct[f]]
+            expected = (np.linalg.norm(cent[f] - image) - np.linalg.norm(cent[f] - tx)) / C0
+            assert abs(extra - expected) < 1e-12  # 1 ps
+            checked += 1
+    assert checked > 40
+
+
+def test_monostatic_merge_equals_sum_of_both_images_and_walls_switch():
+    m = _short_motion(n_frames=2)
+    tx = (3.0, 0.0, 1.1)
+    rx_near = (3.0, 0.0, 1.1 + 1e-7)  # a distinct receiver 0.1 um away: tx- and rx-image paths kept apart
+    radar = RadarConfig(links=[Link(name="mono", tx=tx), Link(name="bi", tx=tx, rx=rx_near)])
+    scene = get_scene("room", LOD, m.rig.height, radar.waveform.carrier_hz)
+    n_faces = len(scene.body_faces)
+    out = facet_paths(m, radar, scene=scene, lod=LOD, walls=True)
+    mono, bi = out["mono"], out["bi"]
+    g_bi = dict(zip(bi.ids, bi.gains[0]))
+    floor = 1 + 2 * [w.name for w in scene.walls].index("floor")
+    cols = np.flatnonzero((mono.ids // n_faces == floor) & (mono.gains[0] != 0))
+    assert cols.size > 0
+    for col in cols:
+        f = mono.ids[col] % n_faces
+        both = g_bi.get(f + n_faces * floor, 0) + g_bi.get(f + n_faces * (floor + 1), 0)
+        assert mono.gains[0, col] == pytest.approx(both, rel=1e-5)  # 0.1 um geometry change
+    assert np.all(mono.ids // n_faces != floor + 1)  # the merged twin is not emitted
+    no_walls = facet_paths(m, radar, scene=scene, lod=LOD, walls=False)["mono"]
+    assert np.all(no_walls.ids < n_faces)
+    assert set(no_walls.ids) == set(mono.ids[mono.ids < n_faces])
