@@ -31,7 +31,7 @@ def _radar(*links) -> RadarConfig:
 def test_moving_body_toward_radar_shortens_nearest_delay_exactly():
     m = _motion(2)
     radar = _radar()
-    p0 = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False)["r"]
+    p0 = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None)["r"]
     col = np.nanargmin(p0.delays[0])
     av = load_avatar(LOD)
     c = skin_vertices(av, m, [0])[0][av.faces[p0.ids[col]]].mean(axis=0)
@@ -39,7 +39,7 @@ def test_moving_body_toward_radar_shortens_nearest_delay_exactly():
     # (every other point gets closer by at most 0.1 m), so the shortest delay drops by 2 * 0.1 / c0.
     u = (np.asarray(TX) - c) / np.linalg.norm(np.asarray(TX) - c)
     m1 = Motion(m.rig, m.fps, m.rotations, m.positions + 0.1 * u)
-    p1 = facet_paths(m1, radar, scene="free_space", lod=LOD, walls=False)["r"]
+    p1 = facet_paths(m1, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None)["r"]
     change = np.nanmin(p0.delays[0]) - np.nanmin(p1.delays[0])
     assert abs(change - 2 * 0.1 / C0) < 1e-12  # 1 ps (float64 delays: ~1e-18 s)
 
@@ -49,7 +49,8 @@ def test_delay_rates_match_delay_differences():
     # "central" skin velocities are the motion's own finite differences, so rate and delay history must
     # agree to the O(h^2) truncation (1e-5 of the peak rate measured at 240 fps). (The default "spline"
     # velocities differ by up to 2 % at one kink of the procedural walk: a property of the motion.)
-    ps = facet_paths(m, _radar(), scene="free_space", lod=LOD, walls=False, velocity_method="central")["r"]
+    ps = facet_paths(m, _radar(), scene="free_space", lod=LOD, walls=False, velocity_method="central",
+                     trace_fps=None)["r"]
     on = np.all(ps.gains != 0, axis=0)
     assert on.sum() > 100
     fd = np.gradient(ps.delays[:, on], m.times, axis=0)[2:-2]
@@ -61,10 +62,12 @@ def test_delay_rates_match_delay_differences():
 def test_trace_fps_interpolates_between_traced_frames():
     m = _motion(13)
     radar = _radar()
-    full = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False)["r"]
+    full = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None,
+                       min_relative_gain_db=None)["r"]
     idx = trace_frame_indices(m.n_frames, m.fps, 15.0)
     assert idx.tolist() == [0, 4, 8, 12]
-    coarse = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=15.0)["r"]
+    coarse = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=15.0,
+                         min_relative_gain_db=None)["r"]
     # At a traced frame the gains are the full-rate ones, except that grazing facets may flip visibility
     # with float32 ray rounding (the frame sits in another BVH cell): measured 1 of 921 paths, 1e-11 of
     # the power.

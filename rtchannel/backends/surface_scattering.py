@@ -293,43 +293,59 @@ def optical_sphere_rcs(radius: float) -> float:
     return np.pi * radius ** 2
 
 
-@numba.njit(parallel=True, cache=True)
-def _lambertian_kernel(c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out):
-    """Fused `diffuse_sqrt_rcs` (Lambertian) + radar-equation amplitude for the direct line p_a -> c -> p_b."""
+@numba.njit(cache=True, inline="always")
+def _lambertian_one(e, c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out):
+    """Fused `diffuse_sqrt_rcs` (Lambertian) + radar-equation amplitude of element e on p_a -> c -> p_b."""
     k_d = 2 * np.pi * thickness / wavelength
+    ra2 = 0.0
+    rb2 = 0.0
+    for i in range(3):
+        ra2 += (c[e, i] - p_a[e, i]) ** 2
+        rb2 += (c[e, i] - p_b[e, i]) ** 2
+    ra, rb = np.sqrt(ra2), np.sqrt(rb2)
+    kx, ky, kz = (c[e, 0] - p_a[e, 0]) / ra, (c[e, 1] - p_a[e, 1]) / ra, (c[e, 2] - p_a[e, 2]) / ra
+    nx, ny, nz = n[e, 0], n[e, 1], n[e, 2]
+    cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
+    cos_s = min(max(-(nx * (c[e, 0] - p_b[e, 0]) + ny * (c[e, 1] - p_b[e, 1]) + nz * (c[e, 2] - p_b[e, 2])) / rb,
+                    0.0), 1.0)
+    if pec:
+        gamma = 1.0
+    else:
+        # TE fraction of a theta-hat (vertical) incident field: theta_hat ~ (k x z) x k, e_perp = k x n.
+        tx, ty, tz = -kx * kz, -ky * kz, kx * kx + ky * ky
+        px, py, pz = ky * nz - kz * ny, kz * nx - kx * nz, kx * ny - ky * nx
+        tn = tx * tx + ty * ty + tz * tz
+        pn = px * px + py * py + pz * pz
+        c2 = 0.5
+        if tn > 1e-18 and pn > 1e-18:
+            c2 = min((tx * px + ty * py + tz * pz) ** 2 / (tn * pn), 1.0)
+        b = np.sqrt(eta - (1.0 - cos_i * cos_i))
+        r_te = (cos_i - b) / (cos_i + b)
+        r_tm = (eta * cos_i - b) / (eta * cos_i + b)
+        if thickness > 0 and 2 * k_d * b.imag > -40.0:  # else the slab's back face is invisible
+            e2 = np.exp(-2j * k_d * b)
+            r_te = r_te * (1 - e2) / (1 - r_te * r_te * e2)
+            r_tm = r_tm * (1 - e2) / (1 - r_tm * r_tm * e2)
+        gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
+    root = s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[e], 0.0))
+    out[e] = wavelength * root / (FOUR_PI_1_5 * ra * rb)
+
+
+@numba.njit(parallel=True, cache=True)
+def _lambertian_parallel(c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out):
     for e in numba.prange(c.shape[0]):
-        ra2 = 0.0
-        rb2 = 0.0
-        for i in range(3):
-            ra2 += (c[e, i] - p_a[e, i]) ** 2
-            rb2 += (c[e, i] - p_b[e, i]) ** 2
-        ra, rb = np.sqrt(ra2), np.sqrt(rb2)
-        kx, ky, kz = (c[e, 0] - p_a[e, 0]) / ra, (c[e, 1] - p_a[e, 1]) / ra, (c[e, 2] - p_a[e, 2]) / ra
-        nx, ny, nz = n[e, 0], n[e, 1], n[e, 2]
-        cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
-        cos_s = min(max(-(nx * (c[e, 0] - p_b[e, 0]) + ny * (c[e, 1] - p_b[e, 1]) + nz * (c[e, 2] - p_b[e, 2])) / rb,
-                        0.0), 1.0)
-        if pec:
-            gamma = 1.0
-        else:
-            # TE fraction of a theta-hat (vertical) incident field: theta_hat ~ (k x z) x k, e_perp = k x n.
-            tx, ty, tz = -kx * kz, -ky * kz, kx * kx + ky * ky
-            px, py, pz = ky * nz - kz * ny, kz * nx - kx * nz, kx * ny - ky * nx
-            tn = tx * tx + ty * ty + tz * tz
-            pn = px * px + py * py + pz * pz
-            c2 = 0.5
-            if tn > 1e-18 and pn > 1e-18:
-                c2 = min((tx * px + ty * py + tz * pz) ** 2 / (tn * pn), 1.0)
-            b = np.sqrt(eta - (1.0 - cos_i * cos_i))
-            r_te = (cos_i - b) / (cos_i + b)
-            r_tm = (eta * cos_i - b) / (eta * cos_i + b)
-            if thickness > 0 and 2 * k_d * b.imag > -40.0:  # else the slab's back face is invisible
-                e2 = np.exp(-2j * k_d * b)
-                r_te = r_te * (1 - e2) / (1 - r_te * r_te * e2)
-                r_tm = r_tm * (1 - e2) / (1 - r_tm * r_tm * e2)
-            gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
-        root = s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[e], 0.0))
-        out[e] = wavelength * root / (FOUR_PI_1_5 * ra * rb)
+        _lambertian_one(e, c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out)
+
+
+@numba.njit(cache=True)
+def _lambertian_serial(c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out):
+    for e in range(c.shape[0]):
+        _lambertian_one(e, c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out)
+
+
+# Below this many elements a parallel launch costs more than it saves (numba's thread start-up and
+# spinning measured ~9 ms per call on a loaded 2-core machine, against ~0.1 us per element).
+_PARALLEL_MIN = 1_000_000
 
 
 def lambertian_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, p_a, p_b) -> np.ndarray:
@@ -339,7 +355,8 @@ def lambertian_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, p_a, p
     out = np.empty(len(c))
     pec = mat.eta is None
     arr = [np.ascontiguousarray(x, float) for x in (c, n, area, p_a, p_b)]
-    _lambertian_kernel(*arr,
+    kernel = _lambertian_parallel if len(c) >= _PARALLEL_MIN else _lambertian_serial
+    kernel(*arr,
                        complex(0.0 if pec else mat.eta), pec, float(mat.thickness or 0.0), float(wavelength),
                        float(mat.scattering_coefficient), float(mat.xpd_coefficient), out)
     return out

@@ -8,7 +8,9 @@ occluders (other body triangles, walls, furniture) can block it:
   (`wall_images.reflection_points`), is visible when both q -> centroid and antenna -> q are free.
 
 Image legs are only traced for facets the caller still needs (those visible directly from the other
-end of some link), which halves the ray count. All rays of one phase go to Mitsuba in one call.
+end of some link), which halves the ray count. The rays of every traced frame of a BVH batch (see
+`FrameBatchCaster`) go to Mitsuba in two calls: all direct rays, then all image legs; casting is cheap
+(~3e7 rays/s), so the Python/numpy work around it is kept vectorised over frames and facets.
 
 The scene is an `rtchannel.rt_scene.RTScene` (or anything with ``mi_scene`` or a ``cast`` method).
 """
@@ -19,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rtchannel.backends.wall_images import incidence_cosine, mirror, reflection_points
+from rtchannel.backends.wall_images import in_convex_polygon, mirror
 
 _STOP = 1e-4  # m: rays stop this short of their target triangle, so it never counts as its own occluder
 _WALL_LIFT = 1e-4  # m: rays leaving a wall start this far into the room, not on the plane
@@ -41,110 +43,100 @@ def occluded(scene, origins: np.ndarray, directions: np.ndarray, max_t: np.ndarr
     from rtchannel.llvm import import_mitsuba
 
     mi = import_mitsuba()
-    o = np.ascontiguousarray(origins, np.float32)
-    d = np.ascontiguousarray(directions, np.float32)
-    ray = mi.Ray3f(mi.Point3f(mi.Float(o[:, 0]), mi.Float(o[:, 1]), mi.Float(o[:, 2])),
-                   mi.Vector3f(mi.Float(d[:, 0]), mi.Float(d[:, 1]), mi.Float(d[:, 2])))
-    ray.maxt = mi.Float(np.maximum(np.asarray(max_t, np.float64), 0.0).astype(np.float32))
+    o = np.asarray(origins, np.float32).T.copy()
+    d = np.asarray(directions, np.float32).T.copy()
+    ray = mi.Ray3f(mi.Point3f(mi.Float(o[0]), mi.Float(o[1]), mi.Float(o[2])),
+                   mi.Vector3f(mi.Float(d[0]), mi.Float(d[1]), mi.Float(d[2])))
+    ray.maxt = mi.Float(np.maximum(np.asarray(max_t, np.float32), 0.0))
     return np.array(mi_scene.ray_test(ray), dtype=bool)
 
 
-class _Batch:
-    """Collects segments to test, then answers them with one `occluded` call."""
-
-    def __init__(self):
-        self.o, self.d, self.t, self.sizes = [], [], [], []
-
-    def add(self, start: np.ndarray, end: np.ndarray, stop: float) -> int:
-        start = np.broadcast_to(start, end.shape)
-        d = end - start
-        dist = np.linalg.norm(d, axis=1)
-        self.o.append(start)
-        self.d.append(d / np.where(dist > 0, dist, 1.0)[:, None])
-        self.t.append(dist - stop)
-        self.sizes.append(len(end))
-        return len(self.sizes) - 1
-
-    def run(self, scene) -> list[np.ndarray]:
-        """Per added block: bool [n], True where the segment is free."""
-        if not self.sizes or sum(self.sizes) == 0:
-            return [np.ones(s, bool) for s in self.sizes]
-        t = np.concatenate(self.t)
-        free = ~occluded(scene, np.concatenate(self.o), np.concatenate(self.d), t) & (t > 0)
-        return np.split(free, np.cumsum(self.sizes)[:-1])
-
-
-def direct_visibility(scene, centroids: np.ndarray, normals: np.ndarray, usable: np.ndarray,
-                      sources: np.ndarray) -> list[np.ndarray]:
-    """[F] bool per source: facet faces the source and the line of sight to its centroid is free."""
-    batch, idxs = _Batch(), []
-    for pos in sources:
-        idx = np.flatnonzero(usable & (np.einsum("ij,ij->i", normals, pos - centroids) > 0))
-        batch.add(pos, centroids[idx], _STOP)
-        idxs.append(idx)
-    out = []
-    for idx, free in zip(idxs, batch.run(scene)):
-        m = np.zeros(len(centroids), bool)
-        m[idx[free]] = True
-        out.append(m)
-    return out
+def _segments_free(caster, cell, start, end, stop):
+    """Free [N] of segments start -> end [N, 3] (m) in the given cells, stopping `stop` (m) short."""
+    d = end - start
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    d /= np.where(dist > 0, dist, 1.0)[:, None]
+    t = dist - stop
+    return ~caster.occluded_cells(start, d, t, cell) & (t > 0)
 
 
 @dataclass
-class WallVisibility:
-    """Facets seen from one source through one wall.
+class BatchVisibility:
+    """Visibility of the facets of the B frames of one BVH batch.
 
     Attributes:
-        image: the source's mirror image [3] (m).
-        mask: [F] bool, facet visible through the wall.
-        cos_w: [F] incidence cosine at the reflection point (0 where not visible).
+        direct: [S, B, F] bool, facet faces source s and its line of sight is free.
+        images: {(s, w): (b [N], f [N], cos_w [N])}, facets seen from source s through wall w, with the
+            incidence cosine at the reflection point.
     """
 
-    image: np.ndarray
-    mask: np.ndarray
-    cos_w: np.ndarray
+    direct: np.ndarray
+    images: dict
 
 
-def image_visibility(scene, centroids: np.ndarray, normals: np.ndarray, needed: list[np.ndarray],
-                     sources: np.ndarray, walls, keep=None) -> list[list[WallVisibility | None]]:
-    """Per source and wall, the facets visible through the wall (None: the source is behind it).
+def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs) -> BatchVisibility:
+    """Visibility of facets (centroids, normals [B, F, 3], usable [B, F]) of the frames loaded in
+    `caster`'s cells 0..B-1 from `sources` [S, 3] (m), directly and through `walls`.
 
-    Args:
-        needed: per source, [F] bool of facets worth testing (e.g. visible from the link's other end).
-        keep: optional callable (source index, facet indices, image [3]) -> bool mask, a last filter
-            before rays are cast (e.g. a gain bound).
-    """
-    batch, jobs = _Batch(), []
-    out = [[None] * len(walls) for _ in sources]
+    pairs: (tx source, rx source) of each link; image legs are traced only for facets visible directly
+    from the other end of some link."""
+    n_b, n_f = usable.shape
+    direct = np.zeros((len(sources), n_b, n_f), bool)
+    parts = []
     for s, pos in enumerate(sources):
-        cand_all = np.flatnonzero(needed[s])
-        if cand_all.size == 0:
-            continue
-        c = centroids[cand_all]
+        b, f = np.nonzero(usable & (np.einsum("bfi,bfi->bf", normals, pos - centroids) > 0))
+        parts.append((s, b, f))
+    cell = np.concatenate([b for _, b, _ in parts])
+    end = np.concatenate([centroids[b, f] for _, b, f in parts])
+    start = np.repeat(sources, [b.size for _, b, _ in parts], axis=0)
+    free = np.split(_segments_free(caster, cell, start, end, _STOP), np.cumsum([b.size for _, b, _ in parts])[:-1])
+    for (s, b, f), ok in zip(parts, free):
+        direct[s, b[ok], f[ok]] = True
+    images = {}
+    if not walls:
+        return BatchVisibility(direct, images)
+    needed = np.zeros_like(direct)
+    for s_tx, s_rx in pairs:
+        needed[s_tx] |= direct[s_rx]
+        needed[s_rx] |= direct[s_tx]
+    jobs, starts, ends, stops, cells = [], [], [], [], []
+    for s, pos in enumerate(sources):
         for w, wall in enumerate(walls):
-            front = np.flatnonzero(np.einsum("ij,ij->i", normals[cand_all], mirror(pos, wall) - c) > 0)
-            image, q, valid = reflection_points(c[front], pos, wall)
-            if keep is not None and valid.any():
-                valid[valid] = keep(s, cand_all[front[valid]], image)
-            sel = front[valid]
-            if sel.size == 0:
-                continue
-            q = q[valid]
             nw = np.asarray(wall.normal, float)
-            a = batch.add(q + _WALL_LIFT * nw, c[sel], _STOP)
-            b = batch.add(pos, q, _LEG_STOP)
-            cos_w = incidence_cosine(q, pos, wall)
-            jobs.append((s, w, image, cand_all[sel], cos_w, a, b))
-    free = batch.run(scene)
-    f = len(centroids)
-    for s, w, image, idx, cos_w, a, b in jobs:
-        ok = free[a] & free[b]
-        mask = np.zeros(f, bool)
-        mask[idx[ok]] = True
-        cw = np.zeros(f)
-        cw[idx[ok]] = cos_w[ok]
-        out[s][w] = WallVisibility(image, mask, cw)
-    return out
+            h_src = float((pos - wall.point) @ nw)
+            if not h_src > 0:
+                continue
+            image = mirror(pos, wall)
+            h_c = (centroids - wall.point) @ nw
+            b, f = np.nonzero(needed[s] & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
+            c = centroids[b, f]
+            frac = h_c[b, f] / (h_c[b, f] + h_src)
+            q = c + frac[:, None] * (image - c)
+            inside = in_convex_polygon(q, wall)
+            b, f, c, q = b[inside], f[inside], c[inside], q[inside]
+            if b.size == 0:
+                continue
+            leg = q - pos
+            cos_w = np.abs(leg @ nw) / np.maximum(np.sqrt(np.einsum("ij,ij->i", leg, leg)), 1e-300)
+            jobs.append((s, w, b, f, cos_w))
+            starts += [q + _WALL_LIFT * nw, np.broadcast_to(pos, q.shape)]
+            ends += [c, q]
+            stops += [np.full(b.size, _STOP), np.full(b.size, _LEG_STOP)]
+            cells += [b, b]
+    if jobs:
+        start, end = np.concatenate(starts), np.concatenate(ends)
+        d = end - start
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        t = dist - np.concatenate(stops)
+        free = ~caster.occluded_cells(start, d / np.where(dist > 0, dist, 1.0)[:, None], t,
+                                      np.concatenate(cells)) & (t > 0)
+        at = 0
+        for s, w, b, f, cos_w in jobs:
+            n = b.size
+            ok = free[at:at + n] & free[at + n:at + 2 * n]
+            at += 2 * n
+            images[(s, w)] = (b[ok], f[ok], cos_w[ok])
+    return BatchVisibility(direct, images)
 
 
 class FrameBatchCaster:
@@ -206,18 +198,9 @@ class FrameBatchCaster:
         self._params["body.vertex_positions"] = self._mi.Float(np.ascontiguousarray(v, np.float32).ravel())
         self._params.update()
 
-    def view(self, slot: int) -> "_CellView":
-        """A scene-like object whose `occluded` casts in cell `slot`."""
-        return _CellView(self, slot)
-
-
-class _CellView:
-    def __init__(self, caster: FrameBatchCaster, slot: int):
-        self.caster, self.slot = caster, slot
-
-    def occluded(self, origins, directions, max_t):
-        c = self.caster
-        return occluded(c, np.asarray(origins, float) + c.offsets[self.slot], directions, max_t)
+    def occluded_cells(self, origins, directions, max_t, cells) -> np.ndarray:
+        """Any-hit test of rays [N, 3] (unit directions, up to max_t [N] m) in cells [N] (frame slots)."""
+        return occluded(self, np.asarray(origins, float) + self.offsets[cells], directions, max_t)
 
 
 _CASTERS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -231,14 +214,15 @@ def caster_for(scene, faces, vertices, sources, batch) -> FrameBatchCaster:
     pts = [vertices.min(axis=(0, 1)), vertices.max(axis=(0, 1)), sources.min(axis=0), sources.max(axis=0)]
     pts += [v.min(axis=0) for v, _ in static] + [v.max(axis=0) for v, _ in static]
     lo, hi = np.min(pts, axis=0), np.max(pts, axis=0)
-    cached = _CASTERS.get(scene)
-    if (cached is not None and cached.batch == batch and cached.n_vertices == vertices.shape[1]
-            and cached.n_faces == len(faces) and np.all(lo >= cached.lo) and np.all(hi <= cached.hi)):
+    mine = _CASTERS.setdefault(scene, {})  # one per body mesh (the direct and the image LOD)
+    key = (batch, vertices.shape[1], len(faces))
+    cached = mine.get(key)
+    if cached is not None and np.all(lo >= cached.lo) and np.all(hi <= cached.hi):
         return cached
     lo, hi = lo - 2.0, hi + 2.0  # room for the next motion
     caster = FrameBatchCaster(static, faces, vertices.shape[1], (lo, hi), batch)
-    caster.lo, caster.hi, caster.n_faces = lo, hi, len(faces)
-    _CASTERS[scene] = caster
+    caster.lo, caster.hi = lo, hi
+    mine[key] = caster
     return caster
 
 

@@ -1,0 +1,170 @@
+"""Gains and dense assembly of the `facets` backend (see `rtchannel.backends.facets` for the model).
+
+`link_gains` turns one BVH batch's visibility into sparse per-link, per-kind gains (traced frame slot,
+facet, complex gain); `assemble` turns them into one persistent `PathSet` per link, optionally joining
+parts traced on different meshes (direct paths on the chosen LOD, image paths on a coarser one), and
+fills the [frames, paths] arrays in one compiled pass.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from processing.pathset import PathSet
+from processing.waveform import C0
+from rtchannel.backends.surface_scattering import facet_gains, wall_factor
+from rtchannel.backends.wall_images import mirror
+
+
+def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, material, wavelength, po,
+               direct_paths: bool = True, image_paths: bool = True) -> list[dict]:
+    """Per link {kind: (slot [N], facet [N], gain [N] complex)} of one batch of traced frames.
+
+    vis: `visibility.BatchVisibility` of the batch; slot0: slot of its first frame; cent, norm [B, F, 3],
+    area [B, F]: facet geometry; corners_of(b, f): [N, 3, 3] corners (used with `po`)."""
+    out = []
+    for s_tx, s_rx in pairs:
+        tx, rx = sources[s_tx], sources[s_rx]
+        mono = s_tx == s_rx
+        fams = []
+        if direct_paths:
+            b, f = np.nonzero(vis.direct[s_tx] & vis.direct[s_rx])
+            fams.append((0, b, f, tx, rx, None))
+        for w, wall in enumerate(walls if image_paths else ()):
+            for kind, s_img, s_other, ant in ((1 + 2 * w, s_tx, s_rx, tx), (2 + 2 * w, s_rx, s_tx, rx)):
+                if (kind % 2 == 0 and mono) or (s_img, w) not in vis.images:
+                    continue
+                b, f, cos_w = vis.images[(s_img, w)]
+                keep = vis.direct[s_other][b, f]
+                img = mirror(sources[s_img], wall)
+                p_a, p_b = (img, rx) if kind % 2 else (tx, img)
+                fams.append((kind, b[keep], f[keep], p_a, p_b, (wall, cos_w[keep], ant, mono and kind % 2 == 1)))
+        found = {}
+        for kind, b, f, p_a, p_b, via in fams:
+            if b.size == 0:
+                continue
+            c, n, a = cent[b, f], norm[b, f], area[b, f]
+            corners = corners_of(b, f) if po else None
+            g = facet_gains(material, wavelength, c, n, a, corners, p_a, p_b, po)
+            if via is not None:
+                wall, cos_w, ant, merged = via
+                if merged:  # monostatic: add the twin tx -> f -> rx' (same delay and visibility)
+                    g = g + facet_gains(material, wavelength, c, n, a, corners, p_b, p_a, po)
+                q_dir = mirror(c, wall) - ant  # antenna -> mirrored centroid: the first leg
+                q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
+                g = g * wall_factor(wall, cos_w, q_dir, wavelength)
+            found[kind] = (b + slot0, f, g)
+        out.append(found)
+    return out
+
+
+def merge_batches(batches: list[list[dict]], n_links: int) -> list[dict]:
+    """Concatenate per-batch `link_gains` results into per link {kind: (slot, facet, gain)}."""
+    out = []
+    for li in range(n_links):
+        kinds = sorted({k for b in batches for k in b[li]})
+        out.append({k: tuple(np.concatenate([b[li][k][i] for b in batches if k in b[li]]) for i in range(3))
+                    for k in kinds})
+    return out
+
+
+def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db) -> PathSet:
+    """Dense persistent PathSet of one link.
+
+    parts: list of (found {kind: (slot, facet, gain)}, vertices [K, V, 3], velocities [K, V, 3] or None,
+    faces [T, 3]); path ids are facet + id_faces * kind (facets of every part index below id_faces)."""
+    k, n_slots = len(times), len(trace_idx)
+    cols = []  # (part index, kind, facet ids [P], g_trace [slots, P])
+    for pi, (found, _, _, faces) in enumerate(parts):
+        for kind, (slot, f, g) in sorted(found.items()):
+            present = np.zeros(len(faces), bool)
+            present[f] = True
+            ids = np.flatnonzero(present)
+            col = np.cumsum(present) - 1
+            gt = np.zeros((n_slots, ids.size), complex)
+            gt[slot, col[f]] = g
+            cols.append((pi, kind, ids, gt))
+    if cols:
+        peaks = [np.abs(gt).max(axis=0) for *_, gt in cols]
+        top = max(float(p.max()) for p in peaks)
+        floor = top * 10 ** (min_db / 20) if min_db is not None else 0.0
+        keeps = [(p > 0) & (p >= floor) for p in peaks]
+        cols = [(pi, kind, ids[m], gt[:, m]) for (pi, kind, ids, gt), m in zip(cols, keeps) if m.any()]
+    if not cols:  # nothing ever visible: one absent path keeps the output well-defined
+        return PathSet(times=times, delays=np.full((k, 1), np.nan), gains=np.zeros((k, 1), complex),
+                       ids=np.array([0]), delay_rates=np.zeros((k, 1)), link=name)
+    has_vel = all(p[2] is not None for p in parts)
+    n_p = sum(c[2].size for c in cols)
+    gains = np.empty((k, n_p), complex)
+    delays = np.empty((k, n_p))
+    rates = np.empty((k, n_p))
+    t_tr = times[trace_idx]
+    slot = np.clip(np.searchsorted(t_tr, times, side="right") - 1, 0, max(len(t_tr) - 2, 0))
+    nxt = np.minimum(slot + 1, len(t_tr) - 1)
+    span = np.where(nxt > slot, t_tr[nxt] - t_tr[slot], 1.0)
+    wgt = np.where(nxt > slot, (times - t_tr[slot]) / span, 0.0)
+    all_ids = []
+    for pi, (_, verts, vels, faces) in enumerate(parts):
+        mine = [c for c in cols if c[0] == pi]
+        if not mine:
+            continue
+        fidx = np.concatenate([c[2] for c in mine])
+        kinds = np.concatenate([np.full(c[2].size, c[1]) for c in mine])
+        g_trace = np.ascontiguousarray(np.concatenate([c[3] for c in mine], axis=1))
+        pa = np.broadcast_to(tx, (fidx.size, 3)).copy()  # path end points: antenna or its wall image
+        pb = np.broadcast_to(rx, (fidx.size, 3)).copy()
+        for kind in np.unique(kinds[kinds > 0]):
+            wall = walls[(kind - 1) // 2]
+            if kind % 2 == 1:
+                pa[kinds == kind] = mirror(tx, wall)
+            else:
+                pb[kinds == kind] = mirror(rx, wall)
+        c0 = sum(i.size for i in all_ids)
+        sl = slice(c0, c0 + fidx.size)
+        vel = np.asarray(vels, float) if has_vel else np.zeros((1, 1, 3))
+        g_out, d_out, r_out = np.empty((k, fidx.size), complex), np.empty((k, fidx.size)), np.empty((k, fidx.size))
+        _fill_paths(verts, vel, np.asarray(faces, np.int64), fidx, pa, pb, g_trace, slot, nxt, wgt, has_vel,
+                    g_out, d_out, r_out)
+        if len(parts) == 1:
+            gains, delays, rates = g_out, d_out, r_out
+        else:
+            gains[:, sl], delays[:, sl], rates[:, sl] = g_out, d_out, r_out
+        all_ids.append(fidx + id_faces * kinds)
+    return PathSet(times=times, delays=delays, gains=gains, ids=np.concatenate(all_ids),
+                   delay_rates=rates if has_vel else None, link=name)
+
+
+@numba.njit(parallel=True, cache=True)
+def _fill_paths(verts, vels, faces, fidx, pa, pb, g_trace, slot, nxt, w, has_vel, gains, delays, rates):
+    """Per frame k and path p: gain interpolated between traced frames; centroid delay and its rate
+    (NaN / 0 where the gain is 0). Fused so the [K, P] arrays are written once."""
+    n_k, n_p = gains.shape
+    for k in numba.prange(n_k):
+        j0, j1, wk = slot[k], nxt[k], w[k]
+        for p in range(n_p):
+            g = (1.0 - wk) * g_trace[j0, p] + wk * g_trace[j1, p]
+            gains[k, p] = g
+            if g == 0:
+                delays[k, p] = np.nan
+                rates[k, p] = 0.0
+                continue
+            f = fidx[p]
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            ra2 = 0.0
+            rb2 = 0.0
+            dot_a = 0.0
+            dot_b = 0.0
+            for i in range(3):
+                ci = (verts[k, a, i] + verts[k, b, i] + verts[k, c, i]) / 3.0
+                da = ci - pa[p, i]
+                db = ci - pb[p, i]
+                ra2 += da * da
+                rb2 += db * db
+                if has_vel:
+                    vi = (vels[k, a, i] + vels[k, b, i] + vels[k, c, i]) / 3.0
+                    dot_a += vi * da
+                    dot_b += vi * db
+            ra = np.sqrt(ra2)
+            rb = np.sqrt(rb2)
+            delays[k, p] = (ra + rb) / C0
+            rates[k, p] = (dot_a / ra + dot_b / rb) / C0 if has_vel else 0.0
