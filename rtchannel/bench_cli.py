@@ -60,12 +60,13 @@ def cmd_bench(args) -> int:
     from tqdm import tqdm
 
     from rtchannel.radar import RadarConfig
-    from rtchannel.speed_error import QUICK, REFERENCE, SWEEP, Setting, sweep, write_outputs
+    from rtchannel.speed_error import FULL, QUICK, REFERENCE, SWEEP, Setting, sweep, write_outputs
 
     if args.out is None:
         raise UserError("the speed/error sweep needs --out DIR")
     settings = QUICK if args.quick else SWEEP
-    reference = REFERENCE if not args.quick else Setting("facets full LOD, walls", "facets", {"lod": "full"})
+    reference = REFERENCE if not args.quick else Setting("facets 10k, full accuracy", "facets",
+                                                         {"lod": "10k", **FULL})
     motion = exact_duration_walk(args.duration)
     radar = RadarConfig()
     with tqdm(total=len(settings) + 1, unit="setting", disable=args.quiet or None) as bar:

@@ -32,25 +32,30 @@ class Setting:
 
 REFERENCE = Setting("sionna 1e6 rays, every frame", "sionna", {"samples_per_src": 1_000_000})
 
-# The sweep varies one knob at a time around the facets default (10k LOD, walls, every frame).
+FULL = {"trace_fps": None, "image_lod": None, "min_relative_gain_db": None}  # facets without speed knobs
+
+# The sweep varies one knob at a time around the facets defaults (10k LOD, walls, visibility and gains
+# traced at 10 fps, wall-image paths on the 2k mesh, paths below -40 dB dropped) and its full accuracy.
 SWEEP: tuple[Setting, ...] = (
     Setting("points (21 scatterers)", "points"),
-    Setting("facets 10k, walls", "facets", {"lod": "10k"}),
+    Setting("facets defaults (10k)", "facets", {"lod": "10k"}),
+    Setting("facets 10k, full accuracy", "facets", {"lod": "10k", **FULL}),
+    Setting("facets 10k, full accuracy, PO term", "facets", {"lod": "10k", **FULL, "po": True}),
     Setting("facets 10k, no walls", "facets", {"lod": "10k", "walls": False}),
     Setting("facets full LOD", "facets", {"lod": "full"}),
     Setting("facets 5k", "facets", {"lod": "5k"}),
     Setting("facets 2k", "facets", {"lod": "2k"}),
     Setting("facets 10k, trace 30 fps", "facets", {"lod": "10k", "trace_fps": 30.0}),
-    Setting("facets 10k, trace 15 fps", "facets", {"lod": "10k", "trace_fps": 15.0}),
-    Setting("facets 10k, PO term", "facets", {"lod": "10k", "po": True}),
-    Setting("facets 10k, gains > -40 dB", "facets", {"lod": "10k", "min_relative_gain_db": -40.0}),
+    Setting("facets 10k, trace 5 fps", "facets", {"lod": "10k", "trace_fps": 5.0}),
+    Setting("facets 10k, images on 10k", "facets", {"lod": "10k", "image_lod": None}),
+    Setting("facets 10k, all paths (no -40 dB cut)", "facets", {"lod": "10k", "min_relative_gain_db": None}),
     Setting("sionna 1e5 rays", "sionna", {"samples_per_src": 100_000}),
     Setting("sionna 1e4 rays", "sionna", {"samples_per_src": 10_000}),
     Setting("sionna 1e6 rays, trace 30 fps", "sionna", {"samples_per_src": 1_000_000, "trace_fps": 30.0}),
     Setting("sionna 1e5 rays, depth 2", "sionna", {"samples_per_src": 100_000, "max_depth": 2}),
 )
 
-QUICK: tuple[Setting, ...] = tuple(s for s in SWEEP if s.backend != "sionna" and s.options.get("lod") != "full")
+QUICK: tuple[Setting, ...] = tuple(s for s in SWEEP if s.backend != "sionna" and "full" not in s.label)
 
 
 def _run(setting: Setting, motion, radar: RadarConfig, repeats: int) -> tuple[float, dict]:
