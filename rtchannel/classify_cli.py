@@ -1,5 +1,366 @@
-"""`rtchannel train / evaluate / crossval` (placeholder; filled in by the classifier work)."""
+"""`rtchannel train / evaluate / crossval`: the multiperspective DCNN activity classifier on datasets and recordings.
+
+A dataset is named by a *spec*: ``DIR`` or ``DIR:FILTER`` where FILTER is comma-separated conditions on
+index entries, ``key=v1|v2`` (any of), ``key!=v1|v2`` (none of) or ``key~text`` (substring); keys may be
+dotted into `params` (``params.motion.kind=file``); numbers compare numerically.
+Example: ``out/seed:direction=1|3|5|7|9|11|13|15|17,backend=points``.
+"""
+from __future__ import annotations
+
+import json
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+
+_COND = re.compile(r"^\s*([A-Za-z0-9_.]+)\s*(!=|=|~)\s*(.*?)\s*$")
+
+
+def _user_error():
+    from rtchannel.cli import UserError
+
+    return UserError
+
+
+def parse_spec(spec: str) -> tuple[Path, list[tuple[str, str, list[str]]]]:
+    """(dataset folder, [(key, op, values)]) of ``DIR[:key=v1|v2,key!=v,key~text]``."""
+    path, conds = spec, []
+    head, sep, tail = spec.rpartition(":")
+    if sep and head and re.search(r"(!=|=|~)", tail):
+        path = head
+        for part in filter(None, (p.strip() for p in tail.split(","))):
+            m = _COND.match(part)
+            if not m:
+                raise _user_error()(f"bad filter condition {part!r} in {spec!r} (use key=v1|v2, key!=v or key~text)")
+            conds.append((m.group(1), m.group(2), m.group(3).split("|")))
+    return Path(path), conds
+
+
+def _lookup(entry: dict, key: str):
+    v = entry
+    for k in key.split("."):
+        if not isinstance(v, dict) or k not in v:
+            return None
+        v = v[k]
+    return v
+
+
+def _equal(value, text: str) -> bool:
+    if value is None:
+        return text.lower() in ("none", "null", "")
+    try:
+        return abs(float(value) - float(text)) < 1e-9
+    except (TypeError, ValueError):
+        return str(value).lower() == text.lower()
+
+
+def select(reader, conds) -> list[int]:
+    """Indices of `reader.entries` meeting every condition of a parsed spec."""
+    def ok(e):
+        for key, op, vals in conds:
+            v = _lookup(e, key)
+            if op == "~" and not any(t.lower() in str(v).lower() for t in vals):
+                return False
+            if op == "=" and not any(_equal(v, t) for t in vals):
+                return False
+            if op == "!=" and any(_equal(v, t) for t in vals):
+                return False
+        return True
+    return [i for i, e in enumerate(reader.entries) if ok(e)]
+
+
+def open_spec(spec: str):
+    """(DatasetReader, selected indices) of a dataset spec; UserError if missing or empty."""
+    from processing.dataset_store import DatasetReader
+
+    path, conds = parse_spec(spec)
+    try:
+        reader = DatasetReader(path)
+    except FileNotFoundError as e:
+        raise _user_error()(str(e)) from None
+    idx = select(reader, conds)
+    if not idx:
+        raise _user_error()(f"no dataset entries match {spec!r} ({len(reader)} entries in {path})")
+    return reader, idx
+
+
+def _add_preprocess_model_args(p) -> None:
+    g = p.add_argument_group("input preprocessing (stored in the model)")
+    g.add_argument("--size", type=int, nargs=2, default=(64, 64), metavar=("V", "T"),
+                   help="input image: velocity bins, time bins (default 64 64)")
+    g.add_argument("--v-range", type=float, default=6.2, help="input velocity span +-V m/s (default 6.2; 0: "
+                   "keep the recorded bins)")
+    g.add_argument("--time-mode", choices=("resample", "window"), default="resample",
+                   help="resample the whole recording (default) or a fixed window around the motion")
+    g.add_argument("--window-s", type=float, default=6.0, help="window length for --time-mode window [s]")
+    g.add_argument("--scale", choices=("db", "linear"), default="db", help="intensity scale (default db)")
+    g.add_argument("--floor-db", type=float, default=40.0, help="dynamic range kept in dB (default 40)")
+    g = p.add_argument_group("network")
+    g.add_argument("--kernel", type=int, default=3, choices=(3, 4), help="conv kernel size (seed: 3 or 4)")
+    g.add_argument("--padding", choices=("valid", "same"), default="valid")
+    g.add_argument("--fusion", choices=("concat", "sum", "max", "mean"), default="concat")
+    g.add_argument("--shared-weights", action="store_true", help="one FEN for every radar")
+    g.add_argument("--links", default="radar1,radar2", help="links (one FEN each), comma-separated; one link "
+                   "gives the single-radar variant (default radar1,radar2)")
+    g = p.add_argument_group("training")
+    g.add_argument("--epochs", type=int, default=40, help="maximum epochs (default 40)")
+    g.add_argument("--patience", type=int, default=6, help="early-stopping patience in epochs (default 6)")
+    g.add_argument("--batch-size", type=int, default=32)
+    g.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
+    g.add_argument("--val-fraction", type=float, default=0.2, help="validation share (default 0.2)")
+    g.add_argument("--no-group-split", action="store_true",
+                   help="split items freely (default: all copies of one motion source on one side)")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--threads", type=int, help="torch CPU threads (default: 2, or 1 if the machine is busy)")
+    g.add_argument("--no-batch-norm", action="store_true", help="the literal seed FEN without BatchNorm")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _configs(args):
+    from processing.classifier import ModelConfig, PreprocessConfig, TrainConfig
+    from processing.dataset_store import ACTIVITIES
+
+    links = [s.strip() for s in args.links.split(",") if s.strip()]
+    pre = PreprocessConfig(n_velocity=args.size[0], n_time=args.size[1], v_range_mps=args.v_range or None,
+                           time_mode=args.time_mode, window_s=args.window_s, scale=args.scale,
+                           floor_db=args.floor_db)
+    model = ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links), input_size=tuple(args.size),
+                        kernel_size=args.kernel, padding=args.padding, fusion=args.fusion,
+                        shared_weights=args.shared_weights, batch_norm=not args.no_batch_norm)
+    tc = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, patience=args.patience,
+                     val_fraction=args.val_fraction, group_split=not args.no_group_split, seed=args.seed,
+                     threads=args.threads)
+    return links, pre, model, tc
+
+
+def train_spec(spec: str, args, out: Path, log=print):
+    """Train on a dataset spec; writes the checkpoint, curves and validation confusion next to `out`."""
+    from processing.classifier import Classifier, classification_report, save_checkpoint, train
+    from processing.classifier.metrics import plot_confusion, write_confusion_csv
+    from processing.classifier.train import dataset_arrays
+    from processing.dataset_store import ACTIVITIES
+    from processing.plots_classifier import plot_history
+
+    links, pre, mcfg, tcfg = _configs(args)
+    reader, idx = open_spec(spec)
+    t0 = time.perf_counter()
+    try:
+        x, y, groups = dataset_arrays(reader, idx, links, pre, progress=not args.quiet)
+    except (KeyError, ValueError) as e:
+        raise _user_error()(str(e).strip("'\"")) from None
+    t_load = time.perf_counter() - t0
+    log(f"{len(idx)} items from {spec} ({', '.join(f'{k}={v}' for k, v in zip(*np.unique([ACTIVITIES[i] for i in y], return_counts=True)))}); "
+        f"loaded in {t_load:.1f} s")
+    try:
+        res = train(x, y, mcfg, tcfg, groups=groups, progress=not args.quiet, log=log)
+    except ValueError as e:
+        raise _user_error()(str(e)) from None
+    clf = Classifier(model=res.model, preprocess=pre, classes=list(ACTIVITIES), links=links)
+    va = res.val_idx
+    rep = classification_report(y[va], clf.predict(x[va]), ACTIVITIES)
+    meta = {"train_spec": spec, "n_train": int(res.train_idx.size), "n_val": int(va.size), "best_epoch": res.best_epoch,
+            "train_seconds": res.seconds, "load_seconds": t_load, "train_config": tcfg.model_dump(mode="json"),
+            "val_items": [reader.entries[idx[i]]["item_id"] for i in va], "val_accuracy": rep.accuracy}
+    save_checkpoint(out, clf, history=res.history, extra=meta)
+    stem = out.with_suffix("")
+    plot_history(res.history, f"{stem}_curves.png", res.best_epoch, title=f"training history ({spec})")
+    plot_confusion(rep, f"{stem}_val_confusion.png")
+    write_confusion_csv(rep, f"{stem}_val_confusion.csv")
+    log(f"trained in {res.seconds:.1f} s ({len(res.history['train_loss'])} epochs, best {res.best_epoch}); "
+        f"validation ({va.size} items):\n{rep.summary()}")
+    return clf, res, rep, (reader, idx, x, y)
+
+
+def cmd_train(args) -> int:
+    if args.out.suffix == "":
+        args.out = args.out.with_suffix(".pt")
+    train_spec(args.data, args, args.out)
+    stem = args.out.with_suffix("")
+    print(f"wrote {args.out}, {stem}_curves.png, {stem}_val_confusion.png, {stem}_val_confusion.csv")
+    return 0
+
+
+def _load_model(path: Path):
+    from processing.classifier import load_checkpoint
+
+    try:
+        return load_checkpoint(path)
+    except (FileNotFoundError, ValueError) as e:
+        raise _user_error()(str(e)) from None
+
+
+def evaluate_arrays(clf, x, y, out_dir: Path | None, title: str, names=None, log=print):
+    """Predict, report and (if `out_dir`) write confusion PNG/CSV, metrics.json and predictions.csv."""
+    from processing.classifier import classification_report
+    from processing.classifier.metrics import plot_confusion, write_confusion_csv
+
+    proba = clf.predict_proba(x)
+    pred = proba.argmax(1)
+    rep = classification_report(y, pred, clf.classes)
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        plot_confusion(rep, out_dir / "confusion.png")
+        write_confusion_csv(rep, out_dir / "confusion.csv")
+        (out_dir / "metrics.json").write_text(json.dumps({"title": title, **rep.as_dict()}, indent=1))
+        rows = ["name,true,predicted,confidence"] + [
+            f"{(names[i] if names else i)},{clf.classes[y[i]]},{clf.classes[pred[i]]},{proba[i, pred[i]]:.4f}"
+            for i in range(len(y))]
+        (out_dir / "predictions.csv").write_text("\n".join(rows) + "\n")
+    log(f"{title}:\n{rep.summary()}")
+    return rep
+
+
+def _recording_inputs(clf, args):
+    from processing.ancortek import label_from_name, recording_samples
+
+    src = args.recordings
+    if src.is_dir():
+        paths = sorted(p for p in src.rglob("*") if p.suffix.lower() == ".dat")
+    elif src.is_file():
+        paths = [src]
+    else:
+        raise _user_error()(f"recordings not found: {src}")
+    if not paths:
+        raise _user_error()(f"no .dat files in {src}")
+    if args.label is not None and args.label not in clf.classes:
+        raise _user_error()(f"--label must be one of {', '.join(clf.classes)}")
+    try:
+        samples = recording_samples(paths, clf.links, n_channels=args.channels, conjugate=args.conjugate,
+                                    allow_partial=args.allow_partial)
+    except ValueError as e:
+        raise _user_error()(str(e)) from None
+    names, y, keep = [], [], []
+    for name, links in samples:
+        label = args.label or label_from_name(name, clf.classes)
+        if label is None:
+            print(f"warning: skipping {name}: no activity in its name (pass --label)")
+            continue
+        names.append(name)
+        y.append(clf.classes.index(label))
+        keep.append(links)
+    if not keep:
+        raise _user_error()("no labelled recordings (name files after an activity or pass --label)")
+    return clf.inputs(keep), np.asarray(y), names
+
+
+def cmd_evaluate(args) -> int:
+    from processing.classifier.train import dataset_arrays
+
+    clf = _load_model(args.model)
+    if args.data is not None:
+        reader, idx = open_spec(args.data)
+        try:
+            x, y, _ = dataset_arrays(reader, idx, clf.links, clf.preprocess, progress=not args.quiet)
+        except (KeyError, ValueError) as e:
+            raise _user_error()(str(e).strip("'\"")) from None
+        names, title = [reader.entries[i]["item_id"] for i in idx], f"{args.model.name} on {args.data}"
+    else:
+        x, y, names = _recording_inputs(clf, args)
+        title = f"{args.model.name} on recordings {args.recordings}"
+    out = args.out or args.model.with_name(args.model.stem + "_eval")
+    evaluate_arrays(clf, x, y, out, title, names)
+    print(f"wrote {out}/confusion.png, confusion.csv, metrics.json, predictions.csv")
+    return 0
+
+
+def _crossval_plan(args) -> list[dict]:
+    if args.plan is not None:
+        import yaml
+
+        if not args.plan.is_file():
+            raise _user_error()(f"crossval plan not found: {args.plan}")
+        doc = yaml.safe_load(args.plan.read_text()) or {}
+        exps = doc.get("experiments") if isinstance(doc, dict) else None
+        if not isinstance(exps, list) or not exps:
+            raise _user_error()(f"{args.plan}: needs a list 'experiments' of {{name, train, test}}")
+        plan = []
+        for k, e in enumerate(exps):
+            if not isinstance(e, dict) or "train" not in e or "test" not in e:
+                raise _user_error()(f"{args.plan}: experiment {k + 1} needs 'train' and 'test' specs")
+            tests = e["test"] if isinstance(e["test"], list) else [e["test"]]
+            plan.append({"name": str(e.get("name", f"exp{k + 1}")), "train": str(e["train"]),
+                         "test": [str(t) for t in tests]})
+        return plan
+    if not args.train or not args.test:
+        raise _user_error()("give --plan YAML, or --train SPEC and --test SPEC (repeatable)")
+    return [{"name": f"train{k + 1}", "train": t, "test": list(args.test)} for k, t in enumerate(args.train)]
+
+
+def cmd_crossval(args) -> int:
+    from processing.classifier.train import dataset_arrays
+
+    plan = _crossval_plan(args)
+    out = args.out if args.out.suffix else args.out.with_suffix(".csv")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for exp in plan:
+        model_path = out.with_name(f"{out.stem}_{exp['name']}.pt")
+        clf, res, val_rep, (reader, idx, _, _) = train_spec(exp["train"], args, model_path)
+        for test in exp["test"]:
+            if test == exp["train"]:
+                rep, n_note = val_rep, "held-out validation split"
+            else:
+                treader, tidx = open_spec(test)
+                x, y, _ = dataset_arrays(treader, tidx, clf.links, clf.preprocess, progress=not args.quiet)
+                rep = evaluate_arrays(clf, x, y, None, f"{exp['name']} -> {test}")
+                n_note = ""
+            rows.append({"experiment": exp["name"], "train": exp["train"], "test": test, "n_train": int(res.train_idx.size),
+                         "n_test": rep.n, "accuracy_pct": round(100 * rep.accuracy, 2),
+                         "macro_f1_pct": round(100 * rep.macro_f1, 2), "train_s": round(res.seconds, 1),
+                         "note": n_note})
+    import csv
+
+    with open(out, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    md = ["| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
+    md += ["| " + " | ".join(str(v) for v in r.values()) + " |" for r in rows]
+    out.with_suffix(".md").write_text("\n".join(md) + "\n")
+    print("\n".join(md))
+    print(f"wrote {out} and {out.with_suffix('.md')}")
+    return 0
 
 
 def add_classifier_commands(sub) -> None:
     """Register the `train`, `evaluate` and `crossval` subcommands."""
+    p = sub.add_parser("train", help="train the multiperspective DCNN activity classifier on a dataset",
+                       description="Train the seed's two-branch DCNN (Sect. VII) on a dataset folder with an "
+                       "80:20 stratified split (grouped by motion source), Adam and early stopping. Writes "
+                       "MODEL (checkpoint with preprocessing and class names), MODEL_curves.png and the "
+                       "validation confusion matrix (PNG, CSV). " + (__doc__ or "").split("\n\n")[1])
+    p.add_argument("--data", required=True, help="dataset folder, optionally DIR:FILTER")
+    p.add_argument("--out", required=True, type=Path, help="model checkpoint to write (.pt)")
+    _add_preprocess_model_args(p)
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("evaluate", help="evaluate a trained classifier on a dataset or on .dat recordings",
+                       description="Accuracy, per-class precision/recall, macro F1 and the confusion matrix "
+                       "(the seed's Fig. 11 layout, PNG and CSV) of MODEL on a dataset or on real Ancortek "
+                       ".dat recordings run through the same DSP.")
+    p.add_argument("--model", required=True, type=Path, help="checkpoint written by `rtchannel train`")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--data", help="dataset folder, optionally DIR:FILTER (key=v1|v2,key!=v,key~text)")
+    g.add_argument("--recordings", type=Path, help="a .dat file or a folder of them")
+    p.add_argument("--label", help="activity of every recording (default: from the file names, e.g. "
+                   "fall_01.dat or Glasgow codes 1P36A06R01.dat)")
+    p.add_argument("--channels", type=int, default=1, help="interleaved receive channels per .dat file "
+                   "(= number of model links: one file per sample; 1: files NAME_radar1.dat, NAME_radar2.dat)")
+    p.add_argument("--conjugate", action="store_true", help="conjugate recorded IQ (opposite I/Q convention)")
+    p.add_argument("--allow-partial", action="store_true", help="drop an incomplete last sweep")
+    p.add_argument("--out", type=Path, help="output folder (default MODEL_eval next to the model)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("crossval", help="train on one simulation setting, test on others; one table",
+                       description="Cross-validation between simulation settings: for each training spec "
+                       "train a model, evaluate it on every test spec (a test equal to the training spec "
+                       "uses the held-out validation split) and write one CSV plus a markdown table. "
+                       "Plan YAML: experiments: [{name, train: SPEC, test: [SPEC, ...]}].")
+    p.add_argument("--plan", type=Path, help="YAML listing named train/test settings")
+    p.add_argument("--train", action="append", help="training dataset spec (repeatable)")
+    p.add_argument("--test", action="append", help="test dataset spec (repeatable)")
+    p.add_argument("--out", required=True, type=Path, help="table to write (.csv; a .md is written beside it)")
+    _add_preprocess_model_args(p)
+    p.set_defaults(func=cmd_crossval)

@@ -1,5 +1,91 @@
-"""`rtchannel dataset` (placeholder; filled in by the dataset work)."""
+"""`rtchannel dataset`: run an augmentation plan into a resumable HDF5 dataset, or describe one (--info)."""
+from __future__ import annotations
+
+from pathlib import Path
 
 
 def add_dataset(sub) -> None:
     """Register the `dataset` subcommand."""
+    p = sub.add_parser(
+        "dataset", help="generate a dataset from an augmentation plan (Dask), or --info DIR",
+        description="Expand an augmentation plan (motion, physical and signal layers) into work items and run "
+        "them with Dask into HDF5 shards plus an index. Re-running the same command skips finished items and "
+        "completes an interrupted run. --config takes a YAML file or a preset name (seed).")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--config", help="plan YAML file, or a preset name: seed")
+    g.add_argument("--info", type=Path, metavar="DIR", help="print counts and failures of the dataset in DIR")
+    p.add_argument("--out", type=Path, help="dataset folder (required with --config)")
+    p.add_argument("--scheduler", help="address of a running Dask scheduler (e.g. tcp://host:8786)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: number of cores; 1 runs "
+                   "in this process)")
+    p.add_argument("--retries", type=int, default=2, help="extra attempts for a failing item (default 2)")
+    p.add_argument("--backend", help="override the plan's backend (points, facets, sionna)")
+    p.add_argument("--dry-run", action="store_true", help="validate and count the work items, run nothing")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_dataset)
+
+
+def cmd_dataset(args) -> int:
+    from pydantic import ValidationError
+
+    from rtchannel.cli import UserError, _validation_line
+
+    if args.info is not None:
+        from processing.dataset_store import DatasetReader
+
+        try:
+            print(DatasetReader(args.info).summary())
+        except FileNotFoundError as e:
+            raise UserError(str(e)) from None
+        return 0
+    if args.out is None and not args.dry_run:
+        raise UserError("--out DIR is required with --config")
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers must be >= 1, got {args.workers}")
+    if args.retries < 0:
+        raise UserError(f"--retries must be >= 0, got {args.retries}")
+    from rtchannel.dataset.plan import expand, load_plan, resolve_config
+
+    try:
+        path = resolve_config(args.config)
+        plan = load_plan(path, backend=args.backend)
+        items = expand(plan)
+    except ValidationError as e:
+        raise UserError(_validation_line(e, f"plan {args.config}")) from None
+    except (FileNotFoundError, ValueError) as e:
+        raise UserError(f"plan {args.config}: {e}") from None
+    import inspect
+
+    from rtchannel.simulate import BACKENDS, backend_function
+
+    if plan.backend not in BACKENDS:
+        raise UserError(f"plan {args.config}: unknown backend {plan.backend!r}; choose one of {', '.join(BACKENDS)}")
+    accepted = inspect.signature(backend_function(plan.backend)).parameters
+    unknown = [k for k in plan.backend_options if k not in accepted or k in ("motion", "radar", "gains", "progress")]
+    if unknown:
+        raise UserError(f"plan {args.config}: backend_options.{unknown[0]}: backend {plan.backend!r} has no such "
+                        f"option (or the dataset runner sets it)")
+    if args.dry_run:
+        from collections import Counter
+
+        c = Counter(it.activity for it in items)
+        print(f"{plan.name}: {len(items)} items ({', '.join(f'{k}={v}' for k, v in sorted(c.items()))}), "
+              f"{len({it.group for it in items})} motion groups, backend {plan.backend}")
+        return 0
+    from rtchannel.dataset.runner import PlanMismatchError, run_plan
+
+    try:
+        s = run_plan(plan, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
+                     progress=not args.quiet)
+    except (PlanMismatchError, BlockingIOError) as e:
+        raise UserError(str(e)) from None
+    except (OSError, TimeoutError) as e:
+        if args.scheduler:
+            raise UserError(f"cannot use the Dask scheduler at {args.scheduler}: {e}") from None
+        raise
+    rate = 60.0 * s.done_now / s.seconds if s.seconds > 0 else 0.0
+    print(f"{args.out}: {s.done_before + s.done_now}/{s.total} items done ({s.done_now} now, {rate:.0f} items/min "
+          f"on {s.workers} worker(s)), {len(s.failed)} failed")
+    for e in s.failed[:5]:
+        print(f"failed {e['item_id']}: {e['error']}")
+    return 0 if s.complete else 1

@@ -7,7 +7,7 @@ import pytest
 
 from rtchannel.cli import main
 
-COMMANDS = ["simulate", "render", "bench"]
+COMMANDS = ["simulate", "render", "bench", "compare", "dataset", "train", "evaluate", "crossval"]
 SHARED = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared"
 
 

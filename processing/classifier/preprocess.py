@@ -1,0 +1,124 @@
+"""Fixed-size classifier input from variable-size velocity distributions p(v,t).
+
+A p(v,t) from `processing.dsp.signatures` has V velocity bins (64 for the seed's 64-chirp window) over
+[-v_max, v_max) and T time bins that depend on the recording length (62.5 bins/s at the seed's 0.5 ms
+PRI and hop of 32 chirps; activities last 2-6 s). The network needs one size, and a model trained on
+one radar should accept another radar's recordings, so the input is built on *physical* axes:
+
+1. Velocity: each column is rebinned (mass-conserving: each output bin integrates the input bins it
+   overlaps) onto `n_velocity` bins spanning [-v_range_mps, +v_range_mps] (default 6.2 m/s, the seed
+   radar's v_max; velocities outside the recorded band are 0). With the defaults and the seed's radar
+   this is the identity up to a sub-bin shift. `v_range_mps=None` keeps the recorded span.
+2. Time: `time_mode="resample"` (default) rebins the whole recording to `n_time` bins
+   (the seed's "resized image"; activity durations are normalised away). `time_mode="window"` takes
+   a fixed `window_s` seconds centred on the recording's power centroid (zero-padded where the
+   recording is shorter), then rebins that to `n_time` bins, keeping absolute time scale.
+3. Scale: `scale="db"` (default) takes 10 log10 p, clips it `floor_db` below the sample's maximum and
+   maps [max - floor_db, max] to [0, 1] (per-sample normalisation: the received power level carries
+   range and body size, not activity); `scale="linear"` divides by the sample's maximum.
+
+The `PreprocessConfig` is stored inside every checkpoint so evaluation repeats exactly these steps.
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class PreprocessConfig(BaseModel):
+    """How p(v,t) [V, T] becomes a fixed [n_velocity, n_time] image (units: m/s, s, dB)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    n_velocity: int = Field(64, ge=8, le=1024, description="velocity bins of the network input")
+    n_time: int = Field(64, ge=8, le=4096, description="time bins of the network input")
+    v_range_mps: float | None = Field(6.2, gt=0, description="input spans [-v, v] m/s; None: recorded bins")
+    time_mode: Literal["resample", "window"] = Field("resample", description="how T becomes n_time")
+    window_s: float = Field(6.0, gt=0, description="time span of time_mode='window' [s]")
+    scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
+    floor_db: float = Field(40.0, gt=0, description="dynamic range kept by scale='db' [dB]")
+
+
+def _rebin(x: np.ndarray, src_edges: np.ndarray, dst_edges: np.ndarray, axis: int) -> np.ndarray:
+    """Mass-conserving rebinning along `axis`: each output bin gets the integral of the piecewise-constant
+    input over it (so a narrow peak is never lost between output samples, unlike point interpolation)."""
+    x = np.moveaxis(x, axis, -1)
+    cum = np.concatenate([np.zeros(x.shape[:-1] + (1,)), np.cumsum(x, axis=-1)], axis=-1)
+    # cumulative mass at the output edges; outside the input's span the mass is 0 / total
+    at = np.stack([np.interp(dst_edges, src_edges, c) for c in cum.reshape(-1, cum.shape[-1])])
+    out = np.diff(at, axis=-1).reshape(x.shape[:-1] + (dst_edges.size - 1,))
+    return np.moveaxis(out, -1, axis)
+
+
+def _resample_axis(x: np.ndarray, n: int, axis: int) -> np.ndarray:
+    """`x` rebinned to `n` equal bins over the same span along `axis` (bin means kept)."""
+    m = x.shape[axis]
+    if m == n:
+        return x
+    return _rebin(x, np.linspace(0, 1, m + 1), np.linspace(0, 1, n + 1), axis) * (n / m)
+
+
+def _velocity_grid(p_vt: np.ndarray, velocity: np.ndarray | None, cfg: PreprocessConfig) -> np.ndarray:
+    if cfg.v_range_mps is None or velocity is None:
+        return _resample_axis(p_vt, cfg.n_velocity, axis=0)
+    order = np.argsort(velocity)
+    v, p = np.asarray(velocity, float)[order], p_vt[order]
+    dv = float(np.median(np.diff(v))) if v.size > 1 else 1.0
+    src = np.concatenate([v - dv / 2, [v[-1] + dv / 2]])
+    dst = np.linspace(-cfg.v_range_mps, cfg.v_range_mps, cfg.n_velocity + 1)
+    return _rebin(p, src, dst, axis=0)
+
+
+def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig) -> np.ndarray:
+    t = p_vt.shape[1]
+    dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
+    n_win = max(1, int(round(cfg.window_s / dt)))
+    power = p_vt.sum(axis=0)
+    # centre on where the motion is: spread of the velocity distribution away from zero
+    v_idx = np.abs(np.arange(p_vt.shape[0]) - (p_vt.shape[0] - 1) / 2)
+    activity = (p_vt * v_idx[:, None]).sum(axis=0) * (power > 0)
+    centre = int(round(np.average(np.arange(t), weights=activity))) if activity.sum() > 0 else t // 2
+    start = centre - n_win // 2
+    out = np.zeros((p_vt.shape[0], n_win), p_vt.dtype)
+    lo, hi = max(0, start), min(t, start + n_win)
+    if hi > lo:
+        out[:, lo - start:hi - start] = p_vt[:, lo:hi]
+    return out
+
+
+def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.ndarray | None = None,
+               cfg: PreprocessConfig = PreprocessConfig()) -> np.ndarray:
+    """One fixed-size input image [n_velocity, n_time] (float32, values in [0, 1]) from p(v,t) [V, T].
+
+    Args:
+        p_vt: velocity distribution [V, T] (any non-negative scale; columns need not sum to 1).
+        velocity: its velocity axis [V] in m/s (needed for `v_range_mps`; None: bins taken as they are).
+        time: its time axis [T] in s (needed for `time_mode='window'`; None: 16 ms bins assumed).
+        cfg: the preprocessing settings.
+    """
+    p = np.nan_to_num(np.asarray(p_vt, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    if p.ndim != 2 or p.shape[1] == 0:
+        raise ValueError(f"p_vt must be a non-empty [V, T] array, got shape {p.shape}")
+    p = np.maximum(p, 0.0)
+    p = _velocity_grid(p, velocity, cfg)
+    if cfg.time_mode == "window":
+        p = _time_window(p, time, cfg)
+    p = _resample_axis(p, cfg.n_time, axis=1)
+    peak = p.max()
+    if peak <= 0:
+        return np.zeros((cfg.n_velocity, cfg.n_time), np.float32)
+    if cfg.scale == "linear":
+        return (p / peak).astype(np.float32)
+    db = 10 * np.log10(np.maximum(p / peak, 10 ** (-cfg.floor_db / 10)))
+    return (1.0 + db / cfg.floor_db).astype(np.float32)
+
+
+def preprocess_links(links: dict[str, dict], names, cfg: PreprocessConfig) -> np.ndarray:
+    """Stacked inputs [len(names), n_velocity, n_time] from {link: {"p_vt", "velocity", "time"}}."""
+    missing = [n for n in names if n not in links]
+    if missing:
+        raise ValueError(f"sample has no link {missing[0]!r} (has {', '.join(links)})")
+    return np.stack([preprocess(links[n]["p_vt"], links[n].get("velocity"), links[n].get("time"), cfg)
+                     for n in names])

@@ -1,0 +1,256 @@
+"""Training, early stopping, checkpoints and prediction for the multiperspective DCNN (CPU only).
+
+Determinism: `seed` drives numpy, torch's initialisation, the split and the batch order (a private
+`torch.Generator`), and `torch.use_deterministic_algorithms(True)` is set (free on CPU), so the same data,
+settings and seed give the same weights. Threads: `torch.set_num_threads(threads)`; by default 2 on an idle
+machine and 1 on a loaded one (the reference machine has two cores; oversubscribed OpenMP threads
+spin and ran 10x slower, see `auto_threads`).
+
+Checkpoint (`torch.save` of plain dicts/tensors, loadable with `weights_only=True`): format version,
+model config, preprocessing config, class names, link names (branch order), state dict, training
+history, split indices and any extra metadata (dataset path, filters, timing).
+"""
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from pydantic import BaseModel, ConfigDict, Field
+from torch import nn
+
+from processing.classifier.model import ModelConfig, build_model
+from processing.classifier.preprocess import PreprocessConfig, preprocess_links
+
+CHECKPOINT_VERSION = 1
+
+
+class TrainConfig(BaseModel):
+    """Optimisation settings (Adam, cross-entropy, early stopping on validation loss)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    epochs: int = Field(40, ge=1, description="maximum epochs")
+    batch_size: int = Field(32, ge=1)
+    lr: float = Field(1e-3, gt=0, description="Adam learning rate")
+    weight_decay: float = Field(0.0, ge=0)
+    patience: int = Field(6, ge=1, description="epochs without validation-loss improvement before stopping")
+    min_delta: float = Field(1e-4, ge=0, description="improvement that resets the patience counter")
+    val_fraction: float = Field(0.2, gt=0, lt=1, description="validation share (seed: 80:20)")
+    group_split: bool = Field(True, description="keep all copies of one motion source on one side")
+    seed: int = Field(0, ge=0)
+    threads: int | None = Field(None, ge=1, description="torch CPU threads; None: auto (see setup_torch)")
+
+
+def auto_threads() -> int:
+    """2 threads on an idle machine, 1 when other work already loads the cores.
+
+    Measured on the 2-core reference machine under a load average of ~8: one thread ran an epoch 10x
+    faster than two (OpenMP threads spin-waiting for a core they never get); idle, two are ~1.6x faster.
+    """
+    import os
+
+    cores = os.cpu_count() or 1
+    return 1 if cores < 2 or os.getloadavg()[0] > 0.5 * cores else 2
+
+
+def setup_torch(seed: int, threads: int | None = None) -> None:
+    """Seed numpy/torch, cap CPU threads (None: `auto_threads`) and ask for deterministic kernels."""
+    torch.set_num_threads(threads or auto_threads())
+    torch.manual_seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.use_deterministic_algorithms(True)
+
+
+def split_indices(labels, groups=None, val_fraction: float = 0.2, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(train, validation) index arrays: stratified by label and, if `groups` is given, grouped.
+
+    Grouped splits use scikit-learn's StratifiedGroupKFold with round(1 / val_fraction) folds and take
+    as validation the fold holding most classes (then nearest in size to `val_fraction`), so no group straddles the two sides and class shares stay close to
+    the dataset's. Raises ValueError when there are too few groups or samples to split.
+    """
+    from sklearn.model_selection import StratifiedGroupKFold, train_test_split
+
+    labels = np.asarray(labels)
+    idx = np.arange(labels.size)
+    n_splits = max(2, int(round(1 / val_fraction)))
+    if groups is not None and len(set(groups)) < labels.size:
+        groups = np.asarray([str(g) for g in groups])
+        if np.unique(groups).size < n_splits:
+            raise ValueError(f"grouped split needs at least {n_splits} motion sources, got {np.unique(groups).size}"
+                             " (use an ungrouped split)")
+        skf = StratifiedGroupKFold(n_splits=n_splits, shuffle=True, random_state=seed)
+        n_cls = np.unique(labels).size
+        # the fold that holds most classes, then whose size is nearest the requested share
+        tr, va = min(skf.split(idx, labels, groups), key=lambda f: (
+            n_cls - np.unique(labels[f[1]]).size, abs(f[1].size / labels.size - val_fraction)))
+        return np.sort(tr), np.sort(va)
+    _, counts = np.unique(labels, return_counts=True)
+    strat = labels if counts.min() >= 2 else None
+    tr, va = train_test_split(idx, test_size=val_fraction, random_state=seed, stratify=strat)
+    return np.sort(tr), np.sort(va)
+
+
+def dataset_arrays(reader, indices, links, pre: PreprocessConfig, progress: bool = False):
+    """(X [N, n_links, V, T] float32, labels [N], groups [N]) from a `DatasetReader`'s entries."""
+    from tqdm import tqdm
+
+    indices = list(indices)
+    x = np.zeros((len(indices), len(links), pre.n_velocity, pre.n_time), np.float32)
+    y = np.zeros(len(indices), np.int64)
+    groups = []
+    for k, i in enumerate(tqdm(indices, desc="loading", unit="sample", disable=not progress, leave=False)):
+        e = reader.entries[i]
+        x[k] = preprocess_links(reader.load(i, links=list(links)), links, pre)
+        y[k] = int(e["label"])
+        groups.append(str(e.get("group", e.get("item_id", i))))
+    return x, y, groups
+
+
+@dataclass
+class TrainResult:
+    """A trained network plus what produced it."""
+
+    model: nn.Module
+    history: dict
+    train_idx: np.ndarray
+    val_idx: np.ndarray
+    best_epoch: int
+    seconds: float
+    extra: dict = field(default_factory=dict)
+
+
+def _evaluate(model, x, y, batch_size, loss_fn):
+    model.eval()
+    total, correct, n = 0.0, 0, 0
+    with torch.no_grad():
+        for s in range(0, x.shape[0], batch_size):
+            xb, yb = x[s:s + batch_size], y[s:s + batch_size]
+            out = model(xb)
+            total += float(loss_fn(out, yb).detach()) * xb.shape[0]
+            correct += int((out.argmax(1) == yb).sum())
+            n += xb.shape[0]
+    return total / max(n, 1), correct / max(n, 1)
+
+
+def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig = TrainConfig(), groups=None,
+          split: tuple[np.ndarray, np.ndarray] | None = None, progress: bool = True, log=print) -> TrainResult:
+    """Train on X [N, n_branches, V, T] / labels y [N] with an 80:20 stratified (grouped) split.
+
+    `split` overrides the split with explicit (train, validation) indices. The returned model carries
+    the weights of the epoch with the lowest validation loss (early stopping after `patience` epochs
+    without improvement). History: per-epoch train/val loss and accuracy, and seconds per epoch.
+    """
+    from tqdm import tqdm
+
+    setup_torch(cfg.seed, cfg.threads)
+    t_start = time.perf_counter()
+    tr, va = split if split is not None else split_indices(
+        y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)
+    xt, yt = torch.from_numpy(np.ascontiguousarray(x[tr])), torch.from_numpy(np.asarray(y)[tr])
+    xv, yv = torch.from_numpy(np.ascontiguousarray(x[va])), torch.from_numpy(np.asarray(y)[va])
+    model = build_model(model_cfg)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    loss_fn = nn.CrossEntropyLoss()
+    gen = torch.Generator().manual_seed(cfg.seed)
+    hist = {k: [] for k in ("train_loss", "train_acc", "val_loss", "val_acc", "seconds")}
+    best, best_state, best_epoch, waited = np.inf, copy.deepcopy(model.state_dict()), 0, 0
+    bar = tqdm(range(1, cfg.epochs + 1), desc="training", unit="epoch", disable=not progress)
+    for epoch in bar:
+        t0 = time.perf_counter()
+        model.train()
+        order = torch.randperm(xt.shape[0], generator=gen)
+        run_loss, run_ok = 0.0, 0
+        for s in range(0, xt.shape[0], cfg.batch_size):
+            b = order[s:s + cfg.batch_size]
+            opt.zero_grad()
+            out = model(xt[b])
+            loss = loss_fn(out, yt[b])
+            loss.backward()
+            opt.step()
+            run_loss += float(loss.detach()) * b.numel()
+            run_ok += int((out.argmax(1) == yt[b]).sum())
+        vl, vacc = _evaluate(model, xv, yv, 256, loss_fn) if xv.shape[0] else (float("nan"), float("nan"))
+        hist["train_loss"].append(run_loss / xt.shape[0])
+        hist["train_acc"].append(run_ok / xt.shape[0])
+        hist["val_loss"].append(vl)
+        hist["val_acc"].append(vacc)
+        hist["seconds"].append(time.perf_counter() - t0)
+        bar.set_postfix(loss=f"{hist['train_loss'][-1]:.3f}", val_loss=f"{vl:.3f}", val_acc=f"{vacc:.3f}")
+        if not xv.shape[0] or vl < best - cfg.min_delta:
+            best, best_state, best_epoch, waited = vl, copy.deepcopy(model.state_dict()), epoch, 0
+        else:
+            waited += 1
+            if waited >= cfg.patience:
+                if log:
+                    log(f"early stop after epoch {epoch}; best epoch {best_epoch} (val loss {best:.4f})")
+                break
+    model.load_state_dict(best_state)
+    model.eval()
+    return TrainResult(model=model, history=hist, train_idx=tr, val_idx=va, best_epoch=best_epoch,
+                       seconds=time.perf_counter() - t_start)
+
+
+@dataclass
+class Classifier:
+    """A trained network with everything needed to apply it to new p(v,t)."""
+
+    model: nn.Module
+    preprocess: PreprocessConfig
+    classes: list[str]
+    links: list[str]
+    meta: dict = field(default_factory=dict)
+
+    def inputs(self, samples: list[dict]) -> np.ndarray:
+        """X [N, n_links, V, T] from samples {link: {"p_vt", "velocity", "time"}}."""
+        return np.stack([preprocess_links(s, self.links, self.preprocess) for s in samples])
+
+    def predict_proba(self, x: np.ndarray, batch_size: int = 256) -> np.ndarray:
+        """Class probabilities [N, n_classes] of preprocessed inputs X [N, n_links, V, T]."""
+        self.model.eval()
+        out = []
+        with torch.no_grad():
+            for s in range(0, len(x), batch_size):
+                out.append(torch.softmax(self.model(torch.as_tensor(x[s:s + batch_size])), dim=1).numpy())
+        return np.concatenate(out) if out else np.zeros((0, len(self.classes)), np.float32)
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """Predicted label indices [N] of preprocessed inputs X [N, n_links, V, T]."""
+        return self.predict_proba(x).argmax(axis=1)
+
+
+def save_checkpoint(path: str | Path, clf: Classifier, history: dict | None = None, extra: dict | None = None) -> Path:
+    """Write `clf` (weights, configs, class and link names) plus history/metadata to `path` atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    blob = {"version": CHECKPOINT_VERSION, "model_config": clf.model.cfg.model_dump(mode="json"),
+            "preprocess": clf.preprocess.model_dump(mode="json"), "classes": list(clf.classes),
+            "links": list(clf.links), "state_dict": clf.model.state_dict(), "history": history or {},
+            "meta": {**clf.meta, **(extra or {})}}
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(blob, tmp)
+    tmp.replace(path)
+    return path
+
+
+def load_checkpoint(path: str | Path) -> Classifier:
+    """The `Classifier` stored by `save_checkpoint` (ValueError for a file that is not one)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"model file not found: {path}")
+    try:
+        blob = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # noqa: BLE001 - unpickling failures come in many types
+        raise ValueError(f"{path} is not a classifier checkpoint ({type(e).__name__})") from None
+    if not isinstance(blob, dict) or blob.get("version") != CHECKPOINT_VERSION:
+        raise ValueError(f"{path} is not a version-{CHECKPOINT_VERSION} classifier checkpoint")
+    model = build_model(ModelConfig(**blob["model_config"]))
+    model.load_state_dict(blob["state_dict"])
+    model.eval()
+    meta = dict(blob.get("meta", {}))
+    meta["history"] = blob.get("history", {})
+    return Classifier(model=model, preprocess=PreprocessConfig(**blob["preprocess"]), classes=list(blob["classes"]),
+                      links=list(blob["links"]), meta=meta)

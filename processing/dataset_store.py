@@ -1,0 +1,305 @@
+"""Dataset storage: HDF5 shards written atomically, a JSON-lines index, and a lazy reader (+ torch Dataset).
+
+Folder layout::
+
+    DIR/plan.json          the normalised plan (a re-run must use the same plan)
+    DIR/shards/<hash>.h5   one shard per finished task: group /<item_id> with attribute `entry` (JSON) and
+                           one subgroup per link holding p_vt [V, T], velocity [V], time [T],
+                           mean_velocity [T], range_distribution [R, T], range [R], valid [T], power [T]
+                           (float32; valid bool) and optionally iq [C, N] (complex64)
+    DIR/index.jsonl        one JSON entry per finished item, sorted by item_id (rebuilt from the shards,
+                           which are the source of truth)
+    DIR/errors.jsonl       items that kept failing: item_id, activity, error
+
+A shard is written to a temporary name and renamed, so a shard either exists complete or not at all.
+Each entry carries `sha256` {link: checksum of its stored arrays} to compare datasets bit for bit.
+This module is the lower layer: it never imports `rtchannel`.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import uuid
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")  # class order = label index
+SHARD_FORMAT = "rtchannel-dataset-shard/1"
+SIGNATURE_ARRAYS = ("p_vt", "velocity", "time", "mean_velocity", "range_distribution", "range", "valid", "power")
+INDEX, ERRORS, PLAN, SHARDS = "index.jsonl", "errors.jsonl", "plan.json", "shards"
+
+
+def signature_arrays(sig) -> dict[str, np.ndarray]:
+    """The stored arrays of a `processing.dsp.Signature` (float32; `valid` bool)."""
+    out = {}
+    for key in SIGNATURE_ARRAYS:
+        a = np.asarray(getattr(sig, key))
+        out[key] = a.astype(bool) if key == "valid" else np.ascontiguousarray(a, dtype=np.float32)
+    return out
+
+
+def checksum(arrays: dict[str, np.ndarray]) -> str:
+    """sha256 over names, dtypes, shapes and bytes of `arrays` (sorted by name)."""
+    h = hashlib.sha256()
+    for key in sorted(arrays):
+        a = np.ascontiguousarray(arrays[key])
+        h.update(f"{key}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _tmp_name(path: Path) -> Path:
+    # not mkstemp: its 0600 mode would make shards unreadable to other users of a shared cluster folder
+    return path.with_name(f"{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write a text file atomically (temporary file in the same folder, then rename)."""
+    path = Path(path)
+    tmp = _tmp_name(path)
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_shard(path: str | Path, records: Sequence[dict], attrs: dict | None = None) -> Path:
+    """Write one shard atomically. `records`: [{"entry": dict with "item_id", "links": {link: {name: array}}}].
+
+    Each entry gets ``sha256`` {link: checksum} and ``links`` [names] before it is stored.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _tmp_name(path)
+    try:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["format"] = SHARD_FORMAT
+            for k, v in (attrs or {}).items():
+                f.attrs[k] = v
+            for rec in records:
+                entry = dict(rec["entry"])
+                g = f.create_group(entry["item_id"])
+                entry["links"] = list(rec["links"])
+                entry["sha256"] = {}
+                for link, arrays in rec["links"].items():
+                    lg = g.create_group(link)
+                    stored = {k: v for k, v in arrays.items() if k != "iq"}
+                    entry["sha256"][link] = checksum(stored)
+                    for key, a in arrays.items():
+                        big = a.ndim == 2
+                        lg.create_dataset(key, data=a, compression="gzip" if big else None,
+                                          compression_opts=1 if big else None, shuffle=big)
+                g.attrs["entry"] = json.dumps(entry, sort_keys=True, default=_json_default)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def read_shard_entries(path: str | Path) -> list[dict]:
+    """Entries stored in one shard (each with "shard" set to the file name)."""
+    path = Path(path)
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("format") != SHARD_FORMAT:
+            raise OSError(f"{path.name}: not a dataset shard")
+        return [{**json.loads(g.attrs["entry"]), "shard": path.name} for g in f.values()]
+
+
+def remove_orphans(root: str | Path) -> int:
+    """Delete temporary files left by an interrupted writer; returns how many."""
+    n = 0
+    for p in list(Path(root).glob("*.tmp")) + list((Path(root) / SHARDS).glob("*.tmp")):
+        p.unlink(missing_ok=True)
+        n += 1
+    return n
+
+
+def scan_shards(root: str | Path, delete_bad: bool = False) -> tuple[list[dict], list[str]]:
+    """(entries of every readable shard, deduplicated and sorted by item_id, names of unreadable shards).
+
+    An item found in two shards (never produced by the runner) is kept once, from the first shard by name.
+    """
+    seen: dict[str, dict] = {}
+    bad = []
+    for p in sorted((Path(root) / SHARDS).glob("*.h5")):
+        try:
+            entries = read_shard_entries(p)
+        except (OSError, KeyError, ValueError):
+            bad.append(p.name)
+            if delete_bad:
+                p.unlink(missing_ok=True)
+            continue
+        for e in entries:
+            seen.setdefault(e["item_id"], e)
+    return [seen[k] for k in sorted(seen)], bad
+
+
+def write_index(root: str | Path, entries: Sequence[dict]) -> Path:
+    """Write DIR/index.jsonl atomically (entries sorted by item_id)."""
+    path = Path(root) / INDEX
+    ordered = sorted(entries, key=lambda e: e["item_id"])
+    lines = [json.dumps(e, sort_keys=True, default=_json_default) for e in ordered]
+    write_text_atomic(path, "".join(line + "\n" for line in lines))
+    return path
+
+
+def append_jsonl(path: str | Path, rows: Sequence[dict]) -> None:
+    """Append rows to a JSON-lines file (flushed; a torn last line is ignored by the readers)."""
+    with open(path, "a") as f:
+        f.write("".join(json.dumps(r, sort_keys=True, default=_json_default) + "\n" for r in rows))
+        f.flush()
+
+
+def read_jsonl(path: str | Path) -> list[dict]:
+    """Rows of a JSON-lines file ([] if missing); a truncated last line (killed writer) is skipped."""
+    p = Path(path)
+    if not p.is_file():
+        return []
+    rows = []
+    for line in p.read_text().splitlines():
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return rows
+
+
+class DatasetReader:
+    """Read a dataset folder lazily: the index in memory, arrays from the shards on demand.
+
+    Attributes:
+        root: the dataset folder.
+        entries: one dict per finished item, sorted by item_id (keys: item_id, activity, label,
+            direction_deg, direction, backend, group, source, shard, links, params, sha256, ...).
+        errors: items that kept failing (item_id, activity, error, ...).
+    """
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        if not self.root.is_dir():
+            raise FileNotFoundError(f"dataset folder not found: {self.root}")
+        if (self.root / INDEX).is_file():
+            by_id = {e["item_id"]: e for e in read_jsonl(self.root / INDEX)}
+            self.entries = [by_id[k] for k in sorted(by_id)]
+        elif (self.root / SHARDS).is_dir():
+            self.entries, _ = scan_shards(self.root)
+        else:
+            raise FileNotFoundError(f"{self.root} holds no dataset (no {INDEX} and no {SHARDS}/)")
+        self.errors = read_jsonl(self.root / ERRORS)
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def counts(self, by: str = "activity") -> dict[str, int]:
+        """Number of entries per value of the entry key `by` (sorted by value; missing key -> 'None')."""
+        c = Counter(str(e.get(by)) for e in self.entries)
+        return dict(sorted(c.items(), key=lambda kv: _sort_key(kv[0])))
+
+    def select(self, **criteria) -> list[int]:
+        """Indices of entries whose keys equal the given values (a list/tuple/set value means any of)."""
+        def ok(e):
+            for k, v in criteria.items():
+                vals = v if isinstance(v, (list, tuple, set, frozenset)) else (v,)
+                if e.get(k) not in vals:
+                    return False
+            return True
+        return [i for i, e in enumerate(self.entries) if ok(e)]
+
+    def shard_path(self, i: int) -> Path:
+        return self.root / SHARDS / self.entries[i]["shard"]
+
+    def load(self, i: int, links: Sequence[str] | None = None) -> dict[str, dict[str, np.ndarray]]:
+        """Arrays of entry `i`: {link: {"p_vt" [V, T], "velocity" [V], "time" [T], "mean_velocity" [T],
+        "range_distribution" [R, T], "range" [R], "valid" [T], "power" [T], ("iq")}}."""
+        e = self.entries[i]
+        names = list(e["links"]) if links is None else list(links)
+        missing = [n for n in names if n not in e["links"]]
+        if missing:
+            raise KeyError(f"item {e['item_id']} has no link {missing[0]!r} (links: {', '.join(e['links'])})")
+        with h5py.File(self.shard_path(i), "r") as f:
+            g = f[e["item_id"]]
+            return {n: {k: g[n][k][()] for k in g[n]} for n in names}
+
+    def verify(self, i: int) -> bool:
+        """True if the stored arrays of entry `i` match its recorded checksums."""
+        data = self.load(i)
+        return all(checksum({k: v for k, v in a.items() if k != "iq"}) == self.entries[i]["sha256"][n]
+                   for n, a in data.items())
+
+    def torch_dataset(self, indices: Sequence[int] | None = None, links: Sequence[str] = ("radar1", "radar2"),
+                      transform=None):
+        """A `torch.utils.data.Dataset` over `indices` (default all): item k -> (x, label) where x is
+        ``transform({link: p_vt float32 [V, T]})`` or, without a transform, a float32 tensor [n_links, V, T].
+        Shards are opened lazily, once per process (safe with DataLoader workers)."""
+        import torch
+
+        reader = self
+
+        class _SignatureDataset(torch.utils.data.Dataset):
+            def __init__(self):
+                self.indices = list(range(len(reader))) if indices is None else [int(i) for i in indices]
+                self.links = tuple(links)
+                self._files: dict[str, h5py.File] = {}
+                self._pid = None
+
+            def __len__(self):
+                return len(self.indices)
+
+            def __reduce__(self):  # picklable (spawned DataLoader workers): rebuilt from the reader
+                return reader.torch_dataset, (self.indices, self.links, transform)
+
+            def _file(self, shard: str) -> h5py.File:
+                if self._pid != os.getpid():  # handles opened before a fork must not be shared
+                    self._files, self._pid = {}, os.getpid()
+                if shard not in self._files:
+                    self._files[shard] = h5py.File(reader.root / SHARDS / shard, "r")
+                return self._files[shard]
+
+            def __getitem__(self, k):
+                e = reader.entries[self.indices[k]]
+                g = self._file(e["shard"])[e["item_id"]]
+                maps = {n: np.asarray(g[n]["p_vt"][()], dtype=np.float32) for n in self.links}
+                if transform is not None:
+                    return transform(maps), int(e["label"])
+                return torch.from_numpy(np.stack([maps[n] for n in self.links])), int(e["label"])
+
+        return _SignatureDataset()
+
+    def summary(self) -> str:
+        """Counts per activity, direction, backend, link set and source kind, plus errors (text)."""
+        lines = [f"{self.root}: {len(self)} items ({sum(len(e['links']) for e in self.entries)} signatures), "
+                 f"{len({e['shard'] for e in self.entries})} shards, {len(self.errors)} failed items"]
+        for key in ("activity", "direction_deg", "backend", "link_set", "gain_set"):
+            c = self.counts(key)
+            lines.append(f"  by {key}: " + ", ".join(f"{k}={v}" for k, v in c.items()))
+        lines.append(f"  motion groups: {len({e.get('group') for e in self.entries})}")
+        for err in self.errors[:10]:
+            lines.append(f"  failed {err.get('item_id')}: {err.get('error')}")
+        if len(self.errors) > 10:
+            lines.append(f"  ... and {len(self.errors) - 10} more failed items in {ERRORS}")
+        return "\n".join(lines)
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, (Path, tuple, set)):
+        return str(o) if isinstance(o, Path) else list(o)
+    return str(o)
+
+
+def _sort_key(s: str):
+    try:
+        return (0, float(s), "")
+    except ValueError:
+        return (1, 0.0, s)

@@ -1,0 +1,391 @@
+"""Augmentation plan: a validated config (motion, physical and signal layers) and its deterministic
+expansion into work items, one per (motion variant, direction, link set/waveform, gain set, noise, clutter).
+
+Randomness: every draw comes from ``numpy.random.SeedSequence(plan.seed, spawn_key=sha256(key))`` with
+a key naming what is drawn, so the same config gives the same items (and the same dataset), and changing
+the plan seed changes every draw. Motion-layer draws depend only on the motion key, so all directions
+and gain sets of one motion see the same body; signal-layer draws (gain perturbation, noise, clutter)
+use the item seed.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from processing.dsp import DSPConfig
+from processing.waveform import Waveform
+from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
+from rtchannel.radar import Link, direction_angles
+from rtchannel.scatterers import SCATTERER_NAMES
+
+MOTION_SUFFIXES = (".bvh", ".c3d")
+PRESETS_DIR = Path(__file__).with_name("presets")
+Scalar = float | tuple[float, float]  # a value, or a (low, high) range drawn uniformly per motion variant
+_NAME = r"^[A-Za-z0-9_\-]+$"
+# fields the motion layer sets itself (height, heading, start, mirror, seed) or that must be common (fps)
+_RESERVED_PROC = {"height", "heading_deg", "start", "seed", "fps"}
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class Source(_Model):
+    """One motion source: a procedural generator (``procedural: walk``) or motion files (``files: PATH``)."""
+
+    procedural: Literal[ACTIVITIES] | None = Field(None, description="activity of a procedural generator")
+    variants: int = Field(1, ge=1, le=100000, description="procedural: number of generator seeds (motions)")
+    params: dict[str, Scalar] = Field(default_factory=dict,
+                                      description="procedural: ProceduralParams values or [low, high] ranges")
+    files: str | None = Field(None, description="a .bvh/.c3d file or a folder (relative to the plan file)")
+    pattern: str = Field("**/*", description="files: glob inside a folder (only .bvh/.c3d are used)")
+    activity: str | None = Field(None, description="files: label, or 'from_folder' (the parent folder name)")
+    options: dict[str, Any] = Field(default_factory=dict, description="files: load_motion keyword arguments")
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> "Source":
+        if (self.procedural is None) == (self.files is None):
+            raise ValueError("give exactly one of 'procedural' (an activity) or 'files' (a path)")
+        if self.procedural is not None:
+            bad = sorted(set(self.params) - (set(ProceduralParams.model_fields) - _RESERVED_PROC))
+            if bad:
+                raise ValueError(f"params: {bad[0]!r} is not a procedural parameter here (height, heading, "
+                                 f"start, mirror, seed and fps belong to the motion layer)")
+        else:
+            if self.activity is None:
+                raise ValueError("files: 'activity' is required (an activity or 'from_folder')")
+            if self.activity != "from_folder" and self.activity not in ACTIVITIES:
+                raise ValueError(f"activity must be one of {', '.join(ACTIVITIES)} or 'from_folder'")
+            bad = sorted(set(self.options) - {"units", "up", "align", "floor", "max_gap_s", "on_long_gap"})
+            if bad:
+                raise ValueError(f"options: {bad[0]!r} is not a load_motion option")
+        return self
+
+
+class MotionLayer(_Model):
+    """Motion-layer augmentation. Every list is a product axis; a [low, high] entry is drawn per motion."""
+
+    sources: list[Source] = Field(min_length=1)
+    heights: list[Scalar | None] = Field([1.75], min_length=1, description="body heights [m]; null keeps a file's")
+    time_scales: list[Scalar] = Field([1.0], min_length=1, description="duration factors (2 = half speed)")
+    mirror: list[bool | float] = Field([False], min_length=1, description="left/right mirror (or a probability)")
+    headings_deg: list[Scalar] = Field([0.0], min_length=1, description="turn about the vertical [deg]")
+    starts: list[Literal["auto"] | tuple[Scalar, Scalar]] = Field(
+        ["auto"], min_length=1, description="first-frame hips (x, y) [m]; auto: walks centred on the origin")
+    fps: float = Field(60.0, ge=10, le=2000, description="motion frame rate [Hz]")
+
+    @field_validator("heights", "time_scales", "headings_deg")
+    @classmethod
+    def _ranges(cls, v):
+        for x in v:
+            if isinstance(x, tuple) and not x[0] <= x[1]:
+                raise ValueError(f"range {list(x)} must be [low, high] with low <= high")
+        return v
+
+    @field_validator("heights")
+    @classmethod
+    def _heights(cls, v):
+        for x in v:
+            for h in ((x,) if not isinstance(x, tuple) else x):
+                if h is not None and not 1.2 <= h <= 2.2:
+                    raise ValueError(f"height {h} m outside 1.2-2.2 m")
+        return v
+
+    @field_validator("time_scales")
+    @classmethod
+    def _time_scales(cls, v):
+        for x in v:
+            if min(x if isinstance(x, tuple) else (x,)) <= 0:
+                raise ValueError("time scales must be positive")
+        return v
+
+    @field_validator("mirror")
+    @classmethod
+    def _mirror(cls, v):
+        for x in v:
+            if not isinstance(x, bool) and not 0 <= x <= 1:
+                raise ValueError("mirror entries are true/false or a probability in [0, 1]")
+        return v
+
+
+class LinkSet(_Model):
+    """A named set of radar links (monostatic, bistatic or multistatic); positions before rotation [m]."""
+
+    name: str = Field(pattern=_NAME)
+    links: list[Link] = Field(min_length=1)
+
+    @field_validator("links")
+    @classmethod
+    def _unique(cls, v):
+        names = [link.name for link in v]
+        if len(set(names)) != len(names):
+            raise ValueError(f"link names must be unique, got {names}")
+        return v
+
+
+def _seed_link_set() -> list[LinkSet]:
+    return [LinkSet(name="seed", links=[Link(name="radar1", tx=(3.0, 0.0, 1.1)),
+                                         Link(name="radar2", tx=(0.0, -3.0, 1.1))])]
+
+
+class PhysicalLayer(_Model):
+    """Physical-layer augmentation: directions (rotations of all antennas about z), waveforms, link sets."""
+
+    directions: Literal["seed"] | list[int] | None = Field(
+        None, description="seed directions 1..18 ('seed' = all 18); default when angles_deg is not given")
+    angles_deg: list[float] | None = Field(None, min_length=1, description="rotation angles [deg] instead")
+    waveforms: list[Waveform] = Field(default_factory=lambda: [Waveform()], min_length=1)
+    dsp: DSPConfig = Field(default_factory=DSPConfig)
+    link_sets: list[LinkSet] = Field(default_factory=_seed_link_set, min_length=1)
+
+    @model_validator(mode="after")
+    def _angles(self) -> "PhysicalLayer":
+        if self.directions is not None and self.angles_deg is not None:
+            raise ValueError("give either 'directions' or 'angles_deg', not both")
+        if isinstance(self.directions, list):
+            for d in self.directions:
+                direction_angles(d)  # raises a ValueError naming the bad direction
+        names = [s.name for s in self.link_sets]
+        if len(set(names)) != len(names):
+            raise ValueError(f"link set names must be unique, got {names}")
+        return self
+
+    def rotations(self) -> list[tuple[float, int | None]]:
+        """(rotation angle [deg], seed direction or None) per physical direction."""
+        if self.angles_deg is not None:
+            return [(float(a), None) for a in self.angles_deg]
+        dirs = list(range(1, 19)) if self.directions in (None, "seed") else self.directions
+        return [(direction_angles(d)[0], d) for d in dirs]
+
+
+class GainSet(_Model):
+    """A set of scatterer amplitude gains: the seed's area gains, scaled per scatterer, optionally perturbed.
+
+    points backend: gain_l = seed_l * scale_l * 10^(N(0, perturb_db) / 20), the perturbation drawn per item.
+    Mesh backends (facets, sionna): the set's overall amplitude factor sqrt(sum gain^2 / sum seed^2) scales
+    the item's IQ (it only matters relative to noise and clutter; p(v,t) is normalised).
+    """
+
+    name: str = Field(pattern=_NAME)
+    scale: dict[str, float] = Field(default_factory=dict, description="amplitude factor per scatterer name")
+    perturb_db: float = Field(0.0, ge=0, le=20, description="std of a per-scatterer log-normal factor [dB]")
+
+    @field_validator("scale")
+    @classmethod
+    def _names(cls, v):
+        bad = sorted(set(v) - set(SCATTERER_NAMES))
+        if bad:
+            raise ValueError(f"unknown scatterer {bad[0]!r}; names are {', '.join(SCATTERER_NAMES)}")
+        if any(x < 0 for x in v.values()):
+            raise ValueError("gain scale factors must be >= 0")
+        return v
+
+
+class Clutter(_Model):
+    """Static clutter: point returns at fixed ranges, total power `csr_db` above the item's signal power."""
+
+    n_scatterers: int = Field(8, ge=1, le=1000)
+    csr_db: float = Field(10.0, ge=-60, le=80, description="clutter-to-signal power ratio [dB]")
+    range_m: tuple[float, float] = Field((0.5, 8.0), description="(low, high) range of the returns [m]")
+
+    @field_validator("range_m")
+    @classmethod
+    def _range(cls, v):
+        if not 0 < v[0] <= v[1]:
+            raise ValueError("range_m must be (low, high) with 0 < low <= high")
+        return v
+
+
+class SignalLayer(_Model):
+    """Signal-layer augmentation (product axes): gain sets, receiver noise SNRs and clutter variants."""
+
+    gain_sets: list[GainSet] = Field(default_factory=lambda: [GainSet(name="seed")], min_length=1)
+    snr_db: list[float | None] = Field([None], min_length=1, description="SNR [dB] per link; null = noiseless")
+    clutter: list[Clutter | None] = Field([None], min_length=1)
+
+    @field_validator("gain_sets")
+    @classmethod
+    def _unique(cls, v):
+        names = [g.name for g in v]
+        if len(set(names)) != len(names):
+            raise ValueError(f"gain set names must be unique, got {names}")
+        return v
+
+
+class Storage(_Model):
+    items_per_shard: int = Field(16, ge=1, le=10000, description="work items per task and HDF5 shard")
+    keep_iq: bool = Field(False, description="also store raw IQ (complex64; large)")
+
+
+class Plan(_Model):
+    """A dataset: motion, physical and signal layers, backend and storage. See docs/dataset.md."""
+
+    name: str = Field("dataset", pattern=_NAME)
+    seed: int = Field(0, ge=0, description="plan seed: every random draw derives from it")
+    backend: str = Field("points", min_length=1)
+    backend_options: dict[str, Any] = Field(default_factory=dict)
+    motion: MotionLayer
+    physical: PhysicalLayer = Field(default_factory=PhysicalLayer)
+    signal: SignalLayer = Field(default_factory=SignalLayer)
+    storage: Storage = Field(default_factory=Storage)
+
+    def digest(self) -> str:
+        """Short sha256 of the normalised plan (identifies the dataset a folder holds)."""
+        return hashlib.sha256(json.dumps(self.model_dump(mode="json"), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def resolve_config(spec: str | Path) -> Path:
+    """Path of a plan file, or of a preset named `spec` (e.g. ``seed``) in rtchannel/dataset/presets/."""
+    p = Path(spec)
+    if p.is_file():
+        return p
+    preset = PRESETS_DIR / f"{spec}.yaml"
+    if p.suffix == "" and preset.is_file():
+        return preset
+    raise FileNotFoundError(f"plan file not found: {spec} (presets: "
+                            f"{', '.join(sorted(q.stem for q in PRESETS_DIR.glob('*.yaml')))})")
+
+
+def load_plan(spec: str | Path, **overrides) -> Plan:
+    """Validate a YAML/JSON plan (file or preset name); `files` paths become absolute (relative to the plan).
+
+    Raises pydantic.ValidationError naming the bad field, FileNotFoundError, or ValueError (bad YAML).
+    """
+    path = resolve_config(spec)
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as e:
+        raise ValueError(f"plan {path}: not valid YAML ({str(e).splitlines()[0]})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"plan {path}: expected a mapping at the top level")
+    data.update({k: v for k, v in overrides.items() if v is not None})
+    plan = Plan.model_validate(data)
+    sources = []
+    for s in plan.motion.sources:
+        if s.files is not None:
+            f = Path(s.files).expanduser()
+            s = s.model_copy(update={"files": str((f if f.is_absolute() else path.parent / f).resolve())})
+        sources.append(s)
+    return plan.model_copy(update={"motion": plan.motion.model_copy(update={"sources": sources})})
+
+
+@dataclass(frozen=True)
+class WorkItem:
+    """Everything needed to simulate one item (JSON-able; drawn values already resolved)."""
+
+    item_id: str
+    seed: int
+    activity: str
+    group: str
+    source: str
+    motion: dict  # kind, activity, generator params / file path, height, time_scale, mirror, heading, start
+    radar: dict  # RadarConfig (waveform, dsp, links) before rotation
+    angle_deg: float
+    direction: int | None
+    link_set: str
+    backend: str
+    backend_options: dict
+    gain_set: dict
+    snr_db: float | None
+    clutter: dict | None
+    keep_iq: bool
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def derive_seed(plan_seed: int, key: str) -> int:
+    """A 63-bit seed from the plan seed and a key string (SeedSequence, so keys give independent streams)."""
+    words = np.frombuffer(hashlib.sha256(key.encode()).digest()[:16], dtype="<u4")
+    state = np.random.SeedSequence(plan_seed, spawn_key=tuple(int(w) for w in words)).generate_state(2, np.uint64)
+    return int(state[0] >> np.uint64(1))
+
+
+def _draw(value, rng: np.random.Generator):
+    if isinstance(value, tuple):
+        return float(rng.uniform(*value))
+    return value
+
+
+def _motion_files(src: Source) -> list[Path]:
+    root = Path(src.files)
+    if root.is_file():
+        return [root]
+    if not root.is_dir():
+        raise FileNotFoundError(f"motion source not found: {root}")
+    files = sorted(p for p in root.glob(src.pattern) if p.is_file() and p.suffix.lower() in MOTION_SUFFIXES)
+    if not files:
+        raise FileNotFoundError(f"no .bvh/.c3d files match {src.pattern!r} in {root}")
+    return files
+
+
+def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
+    """(motion id, activity, group, source label, base motion dict) per source variant."""
+    out = []
+    for si, src in enumerate(plan.motion.sources):
+        if src.procedural is not None:
+            act = src.procedural
+            for v in range(src.variants):
+                rng = np.random.default_rng(derive_seed(plan.seed, f"variant:{si}:{v}"))
+                params = {k: _draw(val, rng) for k, val in sorted(src.params.items())}
+                try:
+                    ProceduralParams(**params)
+                except ValidationError as e:
+                    err = e.errors()[0]
+                    raise ValueError(f"motion.sources.{si}.params.{'.'.join(map(str, err['loc'])) or '(root)'}: "
+                                     f"{err['msg']} (drawn value {err.get('input')!r})") from None
+                # generator seed = v (mod 3): falls cycle forward / left / right over the variants
+                gen_seed = 3 * int(rng.integers(0, 2 ** 20)) + v % 3
+                base = {"kind": "procedural", "activity": act, "params": {**params, "seed": gen_seed}}
+                out.append((f"{act}-{si:02d}-{v:04d}", act, f"procedural:{act}#{si}.{v}", f"procedural:{act}", base))
+        else:
+            root = Path(src.files)
+            for v, f in enumerate(_motion_files(src)):
+                act = f.parent.name if src.activity == "from_folder" else src.activity
+                if act not in ACTIVITIES:
+                    raise ValueError(f"motion file {f}: folder name {act!r} is not an activity "
+                                     f"({', '.join(ACTIVITIES)})")
+                rel = f.name if root.is_file() else str(f.relative_to(root))
+                base = {"kind": "file", "activity": act, "path": str(f), "options": dict(src.options)}
+                out.append((f"{act}-{si:02d}-{v:04d}", act, f"file:{rel}", rel, base))
+    return out
+
+
+def expand(plan: Plan) -> list[WorkItem]:
+    """All work items of `plan`, sorted by item_id (deterministic)."""
+    ml, ph, sg = plan.motion, plan.physical, plan.signal
+    motion_axes = list(itertools.product(ml.heights, ml.time_scales, ml.mirror, ml.headings_deg, ml.starts))
+    phys_axes = list(itertools.product(ph.rotations(), ph.waveforms, ph.link_sets))
+    sig_axes = list(itertools.product(sg.gain_sets, sg.snr_db, sg.clutter))
+    wm, wp, ws = (max(2, len(str(len(a) - 1))) for a in (motion_axes, phys_axes, sig_axes))
+    items = []
+    for mid, act, group, source, base in _motion_variants(plan):
+        for mi, (h, ts, mir, hd, st) in enumerate(motion_axes):
+            motion_id = f"{mid}-m{mi:0{wm}d}"
+            rng = np.random.default_rng(derive_seed(plan.seed, "motion:" + motion_id))
+            mirror = bool(mir) if isinstance(mir, bool) else bool(rng.random() < mir)
+            start = st if st == "auto" else [float(_draw(x, rng)) for x in st]
+            motion = {**base, "fps": ml.fps, "height": _draw(h, rng), "time_scale": float(_draw(ts, rng)),
+                      "mirror": mirror, "heading_deg": float(_draw(hd, rng)), "start": start, "key": motion_id}
+            for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
+                radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
+                         "links": [link.model_dump(mode="json") for link in ls.links]}
+                for gi, (gs, snr, cl) in enumerate(sig_axes):
+                    item_id = f"{motion_id}-p{pi:0{wp}d}-s{gi:0{ws}d}"
+                    items.append(WorkItem(
+                        item_id=item_id, seed=derive_seed(plan.seed, "item:" + item_id), activity=act,
+                        group=group, source=source, motion=motion, radar=radar, angle_deg=float(angle),
+                        direction=direction, link_set=ls.name, backend=plan.backend,
+                        backend_options=dict(plan.backend_options), gain_set=gs.model_dump(mode="json"),
+                        snr_db=snr, clutter=None if cl is None else cl.model_dump(mode="json"),
+                        keep_iq=plan.storage.keep_iq))
+    items.sort(key=lambda it: it.item_id)
+    return items

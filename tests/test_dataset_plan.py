@@ -1,0 +1,116 @@
+"""Augmentation plans: validation (one clear error naming the field), deterministic expansion, presets."""
+from pathlib import Path
+
+import pytest
+import yaml
+from pydantic import ValidationError
+
+from rtchannel.cli import main
+from rtchannel.dataset.plan import Plan, derive_seed, expand, load_plan
+from rtchannel.radar import direction_angles
+
+REPO = Path(__file__).resolve().parents[1]
+BASE = {"name": "t", "seed": 3, "motion": {"sources": [{"procedural": "walk", "variants": 2,
+                                                        "params": {"speed": [1.0, 1.5]}},
+                                                       {"procedural": "fall", "variants": 1}],
+                                           "heights": [1.6, [1.7, 1.9]], "time_scales": [1.0, 1.2]},
+        "physical": {"directions": [1, 11]},
+        "signal": {"gain_sets": [{"name": "seed"}, {"name": "j", "perturb_db": 2}], "snr_db": [None, 10]}}
+
+
+def _write(tmp_path, data, name="plan.yaml"):
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(data))
+    return p
+
+
+def test_expansion_counts_ids_and_determinism(tmp_path):
+    items = expand(load_plan(_write(tmp_path, BASE)))
+    # 3 generator variants x 2 heights x 2 time scales x 2 directions x 2 gain sets x 2 SNRs
+    assert len(items) == 3 * 2 * 2 * 2 * 2 * 2
+    ids = [it.item_id for it in items]
+    assert ids == sorted(ids) and len(set(ids)) == len(ids)
+    again = expand(load_plan(_write(tmp_path, BASE, "again.yaml")))
+    assert [it.to_dict() for it in again] == [it.to_dict() for it in items]
+    assert {it.direction for it in items} == {1, 11}
+    assert {it.angle_deg for it in items} == {0.0, direction_angles(11)[0]}  # -160 deg
+    # motion-layer draws are shared by all directions/gain sets of a motion; item seeds are not
+    by_motion = {}
+    for it in items:
+        by_motion.setdefault(it.motion["key"], set()).add(repr(sorted(it.motion.items())))
+    assert all(len(v) == 1 for v in by_motion.values())
+    assert len({it.seed for it in items}) == len(items)
+    walk_speeds = {it.motion["params"]["speed"] for it in items if it.activity == "walk"}
+    assert len(walk_speeds) == 2 and all(1.0 <= s <= 1.5 for s in walk_speeds)
+    drawn_h = {it.motion["height"] for it in items if it.motion["height"] != 1.6}
+    assert all(1.7 <= h <= 1.9 for h in drawn_h) and len(drawn_h) == 6  # per motion: 3 variants x 2 scales
+    assert len({it.group for it in items}) == 3
+
+
+def test_other_plan_seed_changes_draws(tmp_path):
+    a = expand(load_plan(_write(tmp_path, BASE)))
+    b = expand(load_plan(_write(tmp_path, {**BASE, "seed": 4}, "b.yaml")))
+    assert [x.item_id for x in a] == [x.item_id for x in b]
+    assert all(x.seed != y.seed for x, y in zip(a, b))
+    assert {x.motion["params"]["seed"] for x in a} != {y.motion["params"]["seed"] for y in b}
+    # generator seeds stay = variant (mod 3), so falls keep cycling forward / left / right
+    assert all(x.motion["params"]["seed"] % 3 == int(x.item_id.split("-")[2]) % 3 for x in a + b)
+    assert derive_seed(1, "k") == derive_seed(1, "k") != derive_seed(1, "l")
+
+
+@pytest.mark.parametrize("patch, field", [
+    ({"motion": {**BASE["motion"], "heigths": [1.7]}}, "motion.heigths"),
+    ({"motion": {**BASE["motion"], "heights": [2.9]}}, "motion.heights"),
+    ({"motion": {"sources": [{"procedural": "dance"}]}}, "motion.sources.0.procedural"),
+    ({"motion": {"sources": [{"procedural": "walk", "params": {"height": 1.7}}]}}, "motion.sources.0"),
+    ({"physical": {"directions": [19]}}, "physical"),
+    ({"physical": {"waveforms": [{"pri_s": -1}]}}, "physical.waveforms.0.pri_s"),
+    ({"signal": {"gain_sets": [{"name": "g", "scale": {"nose": 2}}]}}, "signal.gain_sets.0.scale"),
+    ({"storage": {"items_per_shard": 0}}, "storage.items_per_shard"),
+    ({"backend_option": {}}, "backend_option"),
+])
+def test_invalid_field_is_one_clear_error(tmp_path, capsys, patch, field):
+    p = _write(tmp_path, {**BASE, **patch})
+    with pytest.raises(ValidationError):
+        load_plan(p)
+    assert main(["dataset", "--config", str(p), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: plan {p}: {field}"), err
+    assert not (tmp_path / "o").exists()
+
+
+def test_missing_motion_folder_and_bad_yaml_are_one_line(tmp_path, capsys):
+    p = _write(tmp_path, {**BASE, "motion": {"sources": [{"files": "nowhere", "activity": "walk"}]}})
+    assert main(["dataset", "--config", str(p), "--out", str(tmp_path / "o")]) == 2
+    assert "motion source not found" in capsys.readouterr().err
+    (tmp_path / "bad.yaml").write_text("motion: [unclosed\n")
+    assert main(["dataset", "--config", str(tmp_path / "bad.yaml"), "--out", str(tmp_path / "o")]) == 2
+    assert "not valid YAML" in capsys.readouterr().err
+    p = _write(tmp_path, {**BASE, "motion": {"sources": [{"procedural": "walk", "params": {"speed": [2.6, 3.0]}}]}})
+    assert main(["dataset", "--config", str(p), "--dry-run"]) == 2  # a drawn value out of range
+    assert f"error: plan {p}: motion.sources.0.params.speed: Input should be less" in capsys.readouterr().err
+    assert main(["dataset", "--config", "seed", "--backend", "nosuch", "--dry-run"]) == 2
+    assert "unknown backend 'nosuch'" in capsys.readouterr().err
+    p = _write(tmp_path, {**BASE, "backend_options": {"lod": "2k"}})
+    assert main(["dataset", "--config", str(p), "--dry-run"]) == 2
+    assert "backend_options.lod: backend 'points' has no such option" in capsys.readouterr().err
+    assert main(["dataset", "--config", "no_such_preset", "--out", str(tmp_path / "o")]) == 2
+    assert "presets: seed" in capsys.readouterr().err
+
+
+def test_seed_preset_reproduces_the_seed_structure(capsys):
+    plan = load_plan("seed")
+    items = expand(plan)
+    # the seed: 2826 pairs; the preset's arithmetic (26 motions x 3 heights x 18 x 2) gives 2808
+    assert len(items) == 26 * 3 * 18 * 2 == 2808
+    assert abs(len(items) - 2826) / 2826 < 0.01
+    assert {it.activity for it in items} == {"fall", "walk", "stand", "sit", "pick"}
+    assert sorted({it.direction for it in items}) == list(range(1, 19))
+    assert {it.gain_set["name"] for it in items} == {"seed", "jitter"}
+    assert all([link["name"] for link in it.radar["links"]] == ["radar1", "radar2"] for it in items)
+    assert load_plan("seed", backend="facets").backend == "facets"
+    assert main(["dataset", "--config", "seed", "--dry-run"]) == 0
+    assert "2808 items" in capsys.readouterr().out
+    example = expand(load_plan(REPO / "examples" / "dataset_small.yaml"))
+    assert len(example) == 48
+    assert isinstance(Plan.model_json_schema(), dict)
