@@ -20,13 +20,14 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import uuid
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
 import h5py
 import numpy as np
+
+from processing.atomic import temporary_sibling
 
 ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")  # class order = label index
 SHARD_FORMAT = "rtchannel-dataset-shard/1"
@@ -53,15 +54,12 @@ def checksum(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def _tmp_name(path: Path) -> Path:
-    # not mkstemp: its 0600 mode would make shards unreadable to other users of a shared cluster folder
-    return path.with_name(f"{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
 
 
 def write_text_atomic(path: Path, text: str) -> None:
     """Write a text file atomically (temporary file in the same folder, then rename)."""
     path = Path(path)
-    tmp = _tmp_name(path)
+    tmp = temporary_sibling(path)
     try:
         tmp.write_text(text)
         os.replace(tmp, path)
@@ -77,7 +75,7 @@ def write_shard(path: str | Path, records: Sequence[dict], attrs: dict | None = 
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_name(path)
+    tmp = temporary_sibling(path)
     try:
         with h5py.File(tmp, "w") as f:
             f.attrs["format"] = SHARD_FORMAT

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import fields
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from processing.atomic import temporary_sibling
 from processing.dsp import Signature
 
 FORMAT_VERSION = "1"
@@ -28,8 +28,7 @@ def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, 
     """Write `signatures` ({link: Signature}) to `path` atomically (temporary file, then rename)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    tmp = temporary_sibling(path)
     try:
         with h5py.File(tmp, "w") as f:
             f.attrs.update(activity=activity, backend=backend, seed=int(seed), direction_deg=float(direction_deg),

@@ -395,23 +395,27 @@ class RTScene:
         return {"hit": hit, "t": t, "body": hit & (sid == self.body_object_id), "prim": prim}
 
 
-_CACHE: "OrderedDict[tuple, RTScene]" = OrderedDict()
+_CACHE: "OrderedDict[tuple, tuple[RTScene, np.ndarray]]" = OrderedDict()  # key -> (scene, rest vertices)
 _CACHE_SIZE = 4
 
 
 def get_scene(scene: str | Path, lod: str, height: float, frequency_hz: float,
               skin: SkinMaterial | None = None) -> RTScene:
     """Cached `RTScene` with the avatar (`lod`, scaled to `height` m) as body, so batch workers keep the
-    scene and Dr.Jit's compiled kernels warm. The body starts in the rest pose; call `set_body`."""
+    scene and Dr.Jit's compiled kernels warm. The body is returned in the rest pose (a cached scene is
+    reset, ~10 ms, since a previous user left it in its last pose); call `set_body`."""
     from rtchannel.avatar import load_avatar
 
     key = (str(resolve_scene(scene)), lod, round(float(height), 6), float(frequency_hz), skin)
     if key in _CACHE:
         _CACHE.move_to_end(key)
-        return _CACHE[key]
+        sc, rest = _CACHE[key]
+        if not np.array_equal(sc.body_vertices, rest):
+            sc.set_body(rest)
+        return sc
     av = load_avatar(lod, height)
     sc = RTScene(scene, av.faces, av.vertices, frequency_hz, skin)
-    _CACHE[key] = sc
+    _CACHE[key] = (sc, sc.body_vertices.copy())
     while len(_CACHE) > _CACHE_SIZE:
         _CACHE.popitem(last=False)
     return sc

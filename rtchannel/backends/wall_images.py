@@ -13,21 +13,12 @@ Walls are duck-typed: anything with ``point`` [3], unit ``normal`` [3] (into the
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from rtchannel.rt_scene import Wall
 
-@dataclass(frozen=True, eq=False)
-class PlanarWall:
-    """A minimal wall (same fields as `rtchannel.rt_scene.Wall`) for tests and custom geometry."""
-
-    name: str
-    point: np.ndarray
-    normal: np.ndarray
-    polygon: np.ndarray
-    relative_permittivity: complex
-    thickness: float = 0.0
+# a wall for tests and custom geometry: the scene's own type (area and thickness default to 0)
+PlanarWall = Wall
 
 
 def mirror(points: np.ndarray, wall) -> np.ndarray:
