@@ -70,16 +70,17 @@ def write_tables(out_dir: Path, name_a: str, name_b: str, rows, cols, table, per
     p_act = out_dir / f"distances_{name_a}_vs_{name_b}.csv"
     with p_act.open("w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["activity", "dtw", "tv", "rmse_m_s"])
+        w.writerow(["activity", "dtw", "tv", "emd_m_s", "rmse_m_s"])
         for a, d in per_activity.items():
-            w.writerow([a, f"{d['dtw']:.4f}", f"{d['tv']:.4f}", f"{d['rmse']:.4f}"])
+            w.writerow([a, f"{d['dtw']:.4f}", f"{d['tv']:.4f}", f"{d['emd']:.4f}", f"{d['rmse']:.4f}"])
     md = [f"Normalised DTW of mean radial velocity, rows {name_a}, columns {name_b} (mean over links)", "",
           "| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for r, row in zip(rows, table):
         md.append(f"| {r} | " + " | ".join(f"**{x:.2f}**" if r == c else f"{x:.2f}" for c, x in zip(cols, row))
                   + " |")
-    md += ["", "| activity | DTW | p(v,t) TV | mean-velocity RMSE [m/s] |", "|---|---|---|---|"]
-    md += [f"| {a} | {d['dtw']:.3f} | {d['tv']:.3f} | {d['rmse']:.3f} |" for a, d in per_activity.items()]
+    md += ["", "| activity | DTW | p(v,t) TV | p(v,t) EMD [m/s] | mean-velocity RMSE [m/s] |", "|---|---|---|---|---|"]
+    md += [f"| {a} | {d['dtw']:.3f} | {d['tv']:.3f} | {d['emd']:.3f} | {d['rmse']:.3f} |"
+           for a, d in per_activity.items()]
     p_md = out_dir / f"table_{name_a}_vs_{name_b}.md"
     p_md.write_text("\n".join(md) + "\n")
     return [p_dtw, p_act, p_md]

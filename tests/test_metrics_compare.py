@@ -63,3 +63,19 @@ def test_pareto_front():
     cost = np.array([1.0, 2.0, 3.0, 0.5, 2.5])
     err = np.array([0.5, 0.2, 0.1, 0.9, 0.3])   # (2.5, 0.3) is beaten by (2.0, 0.2)
     assert list(pareto_front(cost, err)) == [3, 0, 1, 2]
+
+
+def test_earth_mover_distance_paper_values():
+    from processing.metrics import pvt_wasserstein
+
+    v = np.arange(8) * 0.25                       # 0.25 m/s bins
+    p = np.zeros((8, 2))
+    p[2] = 1.0
+    q = np.zeros((8, 2))
+    q[3] = 1.0                                    # every column's line moved one bin
+    assert pvt_wasserstein(p, q, v) == pytest.approx(0.25)
+    assert pvt_tv_distance(p, q) == 1.0           # TV saturates at once
+    half = q.copy()
+    half[2, :] = 1.0                              # half the energy stays: mean shift 0.125 m/s
+    assert pvt_wasserstein(p, half, v) == pytest.approx(0.125)
+    assert pvt_wasserstein(p, p * 3, v) == 0.0
