@@ -227,3 +227,21 @@ def test_evaluate_recordings_from_dat(trained, tmp_path):
     # (atol 1e-4: predictions.csv rounds confidences to 4 decimals)
     np.testing.assert_allclose(got, expected.max(axis=1), atol=1e-4)
     np.testing.assert_allclose([float(r[3]) for r in pairs], expected.max(axis=1), atol=1e-4)
+
+
+def test_active_time_mode_crops_idle_standing():
+    from processing.classifier.preprocess import PreprocessConfig, preprocess
+
+    v = np.linspace(-6.2, 6.2, 64, endpoint=False) + 0.097
+    t = np.arange(500) * 0.016                       # 8 s at 16 ms bins
+    p = np.zeros((64, 500))
+    p[32] = 1.0                                      # standing still: all energy at v = 0
+    p[40, 200:300] = 5.0                             # 1.6 s of motion at +1.6 m/s
+    cfg = PreprocessConfig(time_mode="active", active_margin_s=0.0, n_time=50)
+    whole = preprocess(p, v, t, PreprocessConfig(n_time=50))
+    act = preprocess(p, v, t, cfg)
+    # the active span (bins 200..299) fills the whole image; the whole-recording image shows it in 1/5
+    moving = act[40] > 0.5
+    assert moving.all()
+    assert (whole[40] > 0.5).sum() == 10
+    np.testing.assert_allclose(act, preprocess(p[:, 200:300], v, t[200:300], PreprocessConfig(n_time=50)))

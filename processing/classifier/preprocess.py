@@ -13,6 +13,10 @@ one radar should accept another radar's recordings, so the input is built on *ph
    (the seed's "resized image"; activity durations are normalised away). `time_mode="window"` takes
    a fixed `window_s` seconds centred on the recording's power centroid (zero-padded where the
    recording is shorter), then rebins that to `n_time` bins, keeping absolute time scale.
+   `time_mode="active"` first crops the recording to its active span (time bins whose motion, the
+   p-weighted distance from zero velocity, exceeds `active_fraction` of its peak, plus `active_margin_s`
+   either side), then rebins that: standing still before and after an activity (a 14 s mocap take that
+   walks for 4 s) no longer decides the image's time scale.
 3. Scale: `scale="db"` (default) takes 10 log10 p, clips it `floor_db` below the sample's maximum and
    maps [max - floor_db, max] to [0, 1] (per-sample normalisation: the received power level carries
    range and body size, not activity); `scale="linear"` divides by the sample's maximum.
@@ -35,7 +39,9 @@ class PreprocessConfig(BaseModel):
     n_velocity: int = Field(64, ge=8, le=1024, description="velocity bins of the network input")
     n_time: int = Field(64, ge=8, le=4096, description="time bins of the network input")
     v_range_mps: float | None = Field(6.2, gt=0, description="input spans [-v, v] m/s; None: recorded bins")
-    time_mode: Literal["resample", "window"] = Field("resample", description="how T becomes n_time")
+    time_mode: Literal["resample", "window", "active"] = Field("resample", description="how T becomes n_time")
+    active_fraction: float = Field(0.1, gt=0, lt=1, description="time_mode='active': motion threshold re peak")
+    active_margin_s: float = Field(0.25, ge=0, description="time_mode='active': kept either side [s]")
     window_s: float = Field(6.0, gt=0, description="time span of time_mode='window' [s]")
     scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
     floor_db: float = Field(40.0, gt=0, description="dynamic range kept by scale='db' [dB]")
@@ -71,14 +77,30 @@ def _velocity_grid(p_vt: np.ndarray, velocity: np.ndarray | None, cfg: Preproces
     return _rebin(p, src, dst, axis=0)
 
 
+def _motion(p_vt: np.ndarray) -> np.ndarray:
+    """Per time bin: p-weighted distance of the velocity distribution from zero (bins) - how much moves."""
+    v_idx = np.abs(np.arange(p_vt.shape[0]) - (p_vt.shape[0] - 1) / 2)
+    total = p_vt.sum(axis=0)
+    return np.where(total > 0, (p_vt * v_idx[:, None]).sum(axis=0) / np.where(total > 0, total, 1.0), 0.0)
+
+
+def _active_span(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig) -> np.ndarray:
+    dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
+    motion = _motion(p_vt)
+    if motion.max() <= 0:
+        return p_vt
+    on = np.flatnonzero(motion >= cfg.active_fraction * motion.max())
+    margin = int(round(cfg.active_margin_s / dt))
+    return p_vt[:, max(0, on[0] - margin):on[-1] + margin + 1]
+
+
 def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig) -> np.ndarray:
     t = p_vt.shape[1]
     dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
     n_win = max(1, int(round(cfg.window_s / dt)))
     power = p_vt.sum(axis=0)
     # centre on where the motion is: spread of the velocity distribution away from zero
-    v_idx = np.abs(np.arange(p_vt.shape[0]) - (p_vt.shape[0] - 1) / 2)
-    activity = (p_vt * v_idx[:, None]).sum(axis=0) * (power > 0)
+    activity = _motion(p_vt) * power
     centre = int(round(np.average(np.arange(t), weights=activity))) if activity.sum() > 0 else t // 2
     start = centre - n_win // 2
     out = np.zeros((p_vt.shape[0], n_win), p_vt.dtype)
@@ -105,6 +127,8 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
     p = _velocity_grid(p, velocity, cfg)
     if cfg.time_mode == "window":
         p = _time_window(p, time, cfg)
+    elif cfg.time_mode == "active":
+        p = _active_span(p, time, cfg)
     p = _resample_axis(p, cfg.n_time, axis=1)
     peak = p.max()
     if peak <= 0:
