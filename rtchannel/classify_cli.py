@@ -91,9 +91,9 @@ def _add_preprocess_model_args(p) -> None:
                    help="input image: velocity bins, time bins (default 64 64)")
     g.add_argument("--v-range", type=float, default=6.2, help="input velocity span +-V m/s (default 6.2; 0: "
                    "keep the recorded bins)")
-    g.add_argument("--time-mode", choices=("resample", "window", "active"), default="resample",
-                   help="resample the whole recording (default), a fixed window around the motion, or the active span "
-                   "only (idle standing before/after cropped)")
+    g.add_argument("--time-mode", choices=("resample", "window", "active"), default="active",
+                   help="the active span only, idle standing before/after cropped (default), the whole "
+                   "recording, or a fixed window around the motion")
     g.add_argument("--window-s", type=float, default=6.0, help="window length for --time-mode window [s]")
     g.add_argument("--scale", choices=("db", "linear"), default="db", help="intensity scale (default db)")
     g.add_argument("--floor-db", type=float, default=40.0, help="dynamic range kept in dB (default 40)")

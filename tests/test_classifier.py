@@ -238,10 +238,10 @@ def test_active_time_mode_crops_idle_standing():
     p[32] = 1.0                                      # standing still: all energy at v = 0
     p[40, 200:300] = 5.0                             # 1.6 s of motion at +1.6 m/s
     cfg = PreprocessConfig(time_mode="active", active_margin_s=0.0, n_time=50)
-    whole = preprocess(p, v, t, PreprocessConfig(n_time=50))
+    whole = preprocess(p, v, t, PreprocessConfig(n_time=50, time_mode="resample"))
     act = preprocess(p, v, t, cfg)
     # the active span (bins 200..299) fills the whole image; the whole-recording image shows it in 1/5
     moving = act[40] > 0.5
     assert moving.all()
     assert (whole[40] > 0.5).sum() == 10
-    np.testing.assert_allclose(act, preprocess(p[:, 200:300], v, t[200:300], PreprocessConfig(n_time=50)))
+    np.testing.assert_allclose(act, preprocess(p[:, 200:300], v, t[200:300], PreprocessConfig(n_time=50, time_mode="resample")))
