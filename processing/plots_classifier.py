@@ -6,6 +6,18 @@ from pathlib import Path
 import numpy as np
 
 
+def save_figure(fig, path: str | Path, dpi: int = 120) -> Path:
+    """Lay out, write (creating the folder) and close a matplotlib figure; returns the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def plot_history(history: dict, path: str | Path, best_epoch: int | None = None, title: str | None = None) -> Path:
     """PNG with training/validation loss (left) and accuracy in % (right) against epoch."""
     import matplotlib
@@ -29,9 +41,4 @@ def plot_history(history: dict, path: str | Path, best_epoch: int | None = None,
         a.legend()
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

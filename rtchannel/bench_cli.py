@@ -45,11 +45,10 @@ def bench_points(repeats: int = 7, duration: float = 5.0) -> dict:
 
 
 def cmd_bench(args) -> int:
-    from rtchannel.cli import UserError
-    from rtchannel.compare_cli import _parse_options
+    from rtchannel.cli import UserError, parse_options
 
     if args.chain:
-        options = _parse_options(args.option).get(args.chain, {})
+        options = parse_options(args.option, per_backend=True).get(args.chain, {})
         result = bench_chain(args.chain, repeats=args.repeats, duration=args.duration, **options)
         text = json.dumps(result, indent=2)
         print(text)

@@ -37,6 +37,30 @@ def _add_motion_args(p) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
+def add_radar_args(p) -> None:
+    """--radar-config and the mutually exclusive --direction / --angle-deg (read by `load_radar`)."""
+    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--direction", type=int, default=1, help="seed direction 1..18 (Radar 1 at 20(k-1) deg)")
+    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z instead [deg]")
+
+
+def parse_options(items: list[str] | None, per_backend: bool = False) -> dict:
+    """`NAME=VALUE` items -> {name: value}; with `per_backend`, `BACKEND.NAME=VALUE` -> {backend: {name:
+    value}}. Values are parsed as YAML scalars (numbers, true/false, null)."""
+    import yaml
+
+    out: dict = {}
+    form = "BACKEND.NAME=VALUE" if per_backend else "NAME=VALUE"
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        backend, dot, name = key.partition(".") if per_backend else ("", ".", key)
+        if not sep or not dot or not name or (per_backend and not backend):
+            raise UserError(f"--option must look like {form}, got '{item}'")
+        (out.setdefault(backend, {}) if per_backend else out)[name] = yaml.safe_load(value)
+    return out
+
+
 def _add_simulate(sub) -> None:
     p = sub.add_parser("simulate", help="simulate one activity and write signature.h5 plus PNGs",
                        description="Simulate one activity through a scattering backend and the shared FMCW "
@@ -48,17 +72,14 @@ def _add_simulate(sub) -> None:
     p.add_argument("--option", action="append", metavar="NAME=VALUE",
                    help="any other backend option, e.g. walls=false, trace_fps=30, samples_per_src=100000")
     p.add_argument("--out", required=True, type=Path, help="output folder")
-    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--direction", type=int, default=1, help="seed direction 1..18 (Radar 1 at 20(k-1) deg)")
-    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z instead [deg]")
+    add_radar_args(p)
     p.add_argument("--keep-iq", action="store_true", help="store raw IQ in signature.h5")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_simulate)
 
 
-def _load_radar(args):
+def load_radar(args):
     from rtchannel.radar import RadarConfig, direction_angles
 
     if args.radar_config is not None and not args.radar_config.is_file():
@@ -102,18 +123,11 @@ def _build_motion(args):
 
 def _backend_options(args) -> dict:
     """Backend keyword options from --scene/--lod/--option (values parsed as YAML scalars)."""
-    import yaml
-
     from rtchannel.simulate import BACKENDS
 
     if args.backend not in BACKENDS:
         raise UserError(f"unknown backend '{args.backend}'; choose one of {', '.join(BACKENDS)}")
-    opts = {}
-    for item in args.option or []:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise UserError(f"--option must look like NAME=VALUE, got '{item}'")
-        opts[name] = yaml.safe_load(value)
+    opts = parse_options(args.option)
     for name in ("scene", "lod"):
         if getattr(args, name) is not None:
             if args.backend == "points":
@@ -136,7 +150,7 @@ def cmd_simulate(args) -> int:
     unknown = [k for k in options if k not in accepted or k in ("motion", "radar")]
     if unknown:
         raise UserError(f"backend '{args.backend}' has no option '{unknown[0]}'")
-    radar, angle = _load_radar(args)
+    radar, angle = load_radar(args)
     motion = _build_motion(args)
 
     n_chirps = int(motion.duration / radar.waveform.pri_s + 1) * len(radar.links)
@@ -167,10 +181,7 @@ def _add_render(sub) -> None:
     p.add_argument("--out", required=True, type=Path, help="scene PNG to write")
     p.add_argument("--strip", type=Path, help="also write an animation strip (.png) or animation (.gif)")
     p.add_argument("--frames", type=int, nargs="+", help="frame indices (default: 5 evenly spaced)")
-    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--direction", type=int, default=1, help="seed direction 1..18")
-    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z [deg]")
+    add_radar_args(p)
     p.add_argument("--lod", default="10k", help="avatar level of detail: full, 10k, 5k, 2k (default 10k)")
     p.set_defaults(func=cmd_render)
 
@@ -178,7 +189,7 @@ def _add_render(sub) -> None:
 def cmd_render(args) -> int:
     from rtchannel.render import render_scene, render_strip
 
-    radar, _ = _load_radar(args)
+    radar, _ = load_radar(args)
     motion = _build_motion(args)
     frames = args.frames or list(np.linspace(0, motion.n_frames - 1, 5).round().astype(int))
     bad = [f for f in frames if not 0 <= f < motion.n_frames]

@@ -4,26 +4,10 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def _parse_options(items: list[str] | None) -> dict[str, dict]:
-    """`facets.lod=5k` style options -> {"facets": {"lod": "5k"}} (numbers and booleans parsed by YAML)."""
-    import yaml
-
-    from rtchannel.cli import UserError
-
-    out: dict[str, dict] = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        backend, dot, name = key.partition(".")
-        if not sep or not dot or not backend or not name:
-            raise UserError(f"--option must look like BACKEND.NAME=VALUE, got '{item}'")
-        out.setdefault(backend, {})[name] = yaml.safe_load(value)
-    return out
-
-
 def cmd_compare(args) -> int:
     from tqdm import tqdm
 
-    from rtchannel.cli import UserError, _load_radar
+    from rtchannel.cli import UserError, load_radar, parse_options
     from rtchannel.compare import compare
     from rtchannel.motion.procedural import ACTIVITIES
     from rtchannel.simulate import BACKENDS
@@ -34,11 +18,11 @@ def cmd_compare(args) -> int:
     bad = [a for a in args.activities if a not in ACTIVITIES]
     if bad:
         raise UserError(f"unknown activity '{bad[0]}'; choose from {', '.join(ACTIVITIES)}")
-    options = _parse_options(args.option)
+    options = parse_options(args.option, per_backend=True)
     unknown = [b for b in options if b not in args.backends]
     if unknown:
         raise UserError(f"--option for backend '{unknown[0]}' which is not in --backends")
-    radar, _ = _load_radar(args)
+    radar, _ = load_radar(args)
     with tqdm(total=len(args.backends) * len(args.activities), unit="run", disable=args.quiet or None) as bar:
         files = compare(args.backends, args.activities, radar, args.out, seed=args.seed, height=args.height,
                         options=options, progress=bar.update)
@@ -51,6 +35,7 @@ def cmd_compare(args) -> int:
 
 def add_compare(sub) -> None:
     """Register the `compare` subcommand."""
+    from rtchannel.cli import add_radar_args
     from rtchannel.motion.procedural import ACTIVITIES
 
     p = sub.add_parser("compare", help="one set of activities through several backends: DTW table + p(v,t) figure",
@@ -65,9 +50,6 @@ def add_compare(sub) -> None:
                    help="backend option, e.g. facets.lod=5k or sionna.samples_per_src=100000 (repeatable)")
     p.add_argument("--height", type=float, default=1.75, help="body height [m]")
     p.add_argument("--seed", type=int, default=0, help="motion seed")
-    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--direction", type=int, default=1, help="seed direction 1..18")
-    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z [deg]")
+    add_radar_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_compare)

@@ -56,11 +56,13 @@ def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", *
 
 def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool = False,
                   progress=None, timing: dict | None = None, synthesis: str = "auto",
-                  oversample: int = 8) -> dict[str, LinkResult]:
+                  oversample: int = 8, iq_transform=None) -> dict[str, LinkResult]:
     """Synthesise raw IQ and compute signatures for every link's path set.
 
     `progress` is an optional callable receiving the number of chirps done after each chunk;
-    `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.iter_synthesis`).
+    `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.iter_synthesis`);
+    `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (receiver noise, clutter),
+    and the kept IQ is the transformed one.
     """
     timing = {} if timing is None else timing
     out = {}
@@ -75,6 +77,8 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
                 progress(t.size)
         chirp_t = np.concatenate(t_parts) if t_parts else np.zeros(0)
         iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+        if iq_transform is not None:
+            iq = iq_transform(name, iq)
         t1 = time.perf_counter()
         sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0)
         t2 = time.perf_counter()
@@ -85,14 +89,16 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
 
 
 def simulate(motion: Motion, radar: RadarConfig, backend: str = "points", keep_iq: bool = False,
-             progress=None, synthesis: str = "auto", **backend_options) -> SimulationResult:
+             progress=None, synthesis: str = "auto", iq_transform=None, **backend_options) -> SimulationResult:
     """Run `motion` through `backend` and the shared synthesiser/DSP for every link of `radar`.
 
-    `backend_options` go to the backend (e.g. `lod`, `scene`, `walls` for the mesh backends).
+    `backend_options` go to the backend (e.g. `lod`, `scene`, `walls` for the mesh backends);
+    `iq_transform` see `process_paths`.
     """
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
     paths = backend_paths(motion, radar, backend, **backend_options)
     timing["backend"] = time.perf_counter() - t0
-    links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing, synthesis=synthesis)
+    links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing, synthesis=synthesis,
+                          iq_transform=iq_transform)
     return SimulationResult(links=links, timing=timing)

@@ -62,3 +62,26 @@ def test_every_activity_gives_finite_signatures(activity):
         assert np.isfinite(s.p_vt).all() and np.isfinite(s.mean_velocity).all()
         assert s.valid.mean() > 0.5
         assert np.abs(s.mean_velocity).max() < 6.3
+
+
+def test_iq_transform_acts_before_dsp_and_on_kept_iq():
+    radar = RadarConfig(links=[Link(name="r", tx=(3.0, 0.0, 1.1))])
+    m = generate("sit", duration=2.0)
+    plain = simulate(m, radar, keep_iq=True).links["r"]
+    seen = []
+
+    def zero_second_half(name, iq):
+        seen.append(name)
+        out = iq.copy()
+        out[iq.shape[0] // 2:] = 0
+        return out
+
+    cut = simulate(m, radar, keep_iq=True, iq_transform=zero_second_half).links["r"]
+    assert seen == ["r"]
+    half = plain.iq.shape[0] // 2
+    assert np.all(cut.iq[half:] == 0) and np.array_equal(cut.iq[:half], plain.iq[:half])
+    late = cut.signature.time > cut.signature.time[0] + (half + 64) * radar.waveform.pri_s
+    # after the cut only the static-removal residual (-mean, constant in slow time) is left: all of it at
+    # v = 0, so the mean velocity there is exactly 0, while the unmodified sit still moves
+    assert np.abs(cut.signature.mean_velocity[late]).max() < 1e-6
+    assert np.abs(plain.signature.mean_velocity[late]).max() > 0.05

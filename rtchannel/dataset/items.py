@@ -1,5 +1,5 @@
 """Run one work item: build the motion (motion layer), the rotated radar (physical layer), the scatterer gains,
-simulate with the plan's backend, then apply the signal layer (clutter, receiver noise) on the raw IQ.
+simulate with the plan's backend, the signal layer (clutter, receiver noise) applied to the raw IQ before DSP.
 
 Warm state: motions and loaded motion files are cached per process (items are sorted so that all
 directions and gain sets of one motion run back to back on one worker), and backends keep their own
@@ -16,7 +16,6 @@ from dataclasses import replace
 import numpy as np
 
 from processing.dataset_store import ACTIVITIES, signature_arrays
-from processing.dsp import signatures
 from processing.signal_augment import add_clutter, add_noise, signal_power
 from rtchannel.dataset.plan import WorkItem
 from rtchannel.radar import RadarConfig
@@ -90,31 +89,35 @@ def run_item(item: WorkItem) -> dict:
     if item.backend == "points":
         options["gains"] = gains
     signal_layer = item.snr_db is not None or item.clutter is not None
-    need_iq = item.keep_iq or signal_layer
     mesh_scale = item.backend != "points" and overall != 1.0  # mesh backends: the set's overall factor
 
     from rtchannel.simulate import simulate
 
+    links, clutter_info = {}, {}
+    noise_streams = dict(zip((link.name for link in radar.links), noise_ss.spawn(len(radar.links))))
+
+    def signal_layer_on_iq(name, iq):
+        # raw IQ -> (mesh backends: the gain set's overall factor) -> clutter -> receiver noise, before DSP
+        if mesh_scale:
+            iq = (iq * np.float32(overall)).astype(np.complex64)
+        p_s = signal_power(iq)
+        if item.clutter is not None:
+            crng = np.random.default_rng(clutter_ss.spawn(1)[0])
+            iq, clutter_info[name] = add_clutter(iq, radar.waveform, crng, reference_power=p_s, **item.clutter)
+        if item.snr_db is not None:
+            iq = add_noise(iq, item.snr_db, np.random.default_rng(noise_streams[name]), reference_power=p_s)
+        return iq
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = simulate(motion, radar, backend=item.backend, keep_iq=need_iq, **options)
-    links, clutter_info = {}, {}
-    noise_streams = noise_ss.spawn(len(result.links))
-    for (name, lr), nss in zip(result.links.items(), noise_streams):
+        result = simulate(motion, radar, backend=item.backend, keep_iq=item.keep_iq,
+                          iq_transform=signal_layer_on_iq if signal_layer else None, **options)
+    for name, lr in result.links.items():
         sig, iq = lr.signature, lr.iq
-        if mesh_scale:
+        if mesh_scale and not signal_layer:
             if iq is not None:
                 iq = (iq * np.float32(overall)).astype(np.complex64)
             sig = replace(sig, power=sig.power * overall ** 2)  # normalised distributions are unchanged
-        if signal_layer:
-            p_s = signal_power(iq)
-            if item.clutter is not None:
-                crng = np.random.default_rng(clutter_ss.spawn(1)[0])
-                iq, clutter_info[name] = add_clutter(iq, radar.waveform, crng, reference_power=p_s, **item.clutter)
-            if item.snr_db is not None:
-                iq = add_noise(iq, item.snr_db, np.random.default_rng(nss), reference_power=p_s)
-            t_first = float(lr.chirp_times[0]) if lr.chirp_times.size else 0.0
-            sig = signatures(iq, radar.waveform, radar.dsp, t0=t_first)
         arrays = signature_arrays(sig)
         if item.keep_iq:
             arrays["iq"] = np.asarray(iq, dtype=np.complex64)
