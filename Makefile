@@ -25,7 +25,7 @@ env: llvm $(STAMP)
 
 # Dr.Jit (Mitsuba/Sionna RT) needs libLLVM >= 16; Debian 12's default 15 aborts the process.
 llvm:
-	@if ! $(PYTHON) -c "import sys; sys.path.insert(0, '.'); from rtchannel.llvm import find_libllvm; sys.exit(find_libllvm() is None)"; then \
+	@if ! $(PYTHON) -c "import sys; sys.path.insert(0, '.'); from rtchannel.scene.llvm import find_libllvm; sys.exit(find_libllvm() is None)"; then \
 	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null; then \
 	    echo "installing libllvm19 (Dr.Jit needs LLVM >= 16)"; \
 	    apt-get update -qq && apt-get install -y -qq libllvm19 >/dev/null; \

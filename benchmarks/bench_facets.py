@@ -2,7 +2,7 @@
 walls, 10k-triangle body. Reports median wall time per stage and the path counts, for a few settings of the
 speed knobs (trace_fps, walls, LOD, gain threshold). Goal: <= 1 s wall at the default setting (first row).
 
-The walk is `rtchannel.bench_cli.exact_duration_walk(5.0)`: hips from x = -3 m to 1.3 m along y = 0 (the
+The walk is `rtchannel.analysis.chain_bench.exact_duration_walk(5.0)`: hips from x = -3 m to 1.3 m along y = 0 (the
 same motion as the chain benchmark), 1.7 m short of Radar 1.
 Run: .venv/bin/python benchmarks/bench_facets.py [--repeats 3] [--quick]
 The machine is shared: timings are noisy; medians over repeats are reported.
@@ -13,9 +13,9 @@ import statistics
 import time
 
 from rtchannel.backends.facets import facet_paths
-from rtchannel.bench_cli import exact_duration_walk
+from rtchannel.analysis.chain_bench import exact_duration_walk
 from rtchannel.radar import RadarConfig
-from rtchannel.rt_scene import get_scene
+from rtchannel.scene.rt_scene import get_scene
 
 FULL = {"trace_fps": None, "image_lod": None, "min_relative_gain_db": None}  # full accuracy
 SETTINGS = [

@@ -2,7 +2,7 @@
 all signatures. Goal: < 0.25 s (20x faster than real time). Run: python benchmarks/bench_points.py"""
 import json
 
-from rtchannel.bench_cli import bench_points
+from rtchannel.analysis.chain_bench import bench_points
 
 if __name__ == "__main__":
     print(json.dumps(bench_points(), indent=2))

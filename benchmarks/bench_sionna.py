@@ -33,18 +33,18 @@ def main(argv=None) -> None:
     # Dr.Jit keeps compiled kernels in ~/.drjit across runs; a fresh cache per run keeps the naive
     # variant honest (a frame's path count is otherwise often compiled by an earlier run already).
     os.environ["HOME"] = tempfile.mkdtemp(prefix="bench_sionna_")
-    from rtchannel.llvm import import_mitsuba
+    from rtchannel.scene.llvm import import_mitsuba
 
     mi = import_mitsuba()
     import drjit as dr
     import sionna.rt as rt
 
-    from rtchannel.avatar import load_avatar
+    from rtchannel.body.avatar import load_avatar
     from rtchannel.backends.sionna_rt import place_antennas, trace_frames
     from rtchannel.motion.procedural import generate
     from rtchannel.radar import RadarConfig
-    from rtchannel.rt_scene import get_scene
-    from rtchannel.skinning import skin_velocities, skin_vertices
+    from rtchannel.scene.rt_scene import get_scene
+    from rtchannel.body.skinning import skin_velocities, skin_vertices
 
     if args.threads:
         dr.set_thread_count(args.threads)

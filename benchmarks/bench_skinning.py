@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rtchannel.avatar import LODS, load_avatar
+from rtchannel.body.avatar import LODS, load_avatar
 from rtchannel.motion.augment import time_warp
 from rtchannel.motion.load import load_motion
-from rtchannel.skin_markers import skin_scatterer_trajectories
-from rtchannel.skinning import skin_velocities, skin_vertices
+from rtchannel.body.skin_markers import skin_scatterer_trajectories
+from rtchannel.body.skinning import skin_velocities, skin_vertices
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "mocap" / "cmu"
 

@@ -1,2 +1,52 @@
-"""rtchannel: human motion -> skinned body -> scattering paths -> FMCW MIMO radar signatures (upper layer)."""
+"""rtchannel: human motion -> skinned body -> scattering paths -> FMCW MIMO radar signatures.
+
+The public API (few nouns, one `simulate`)::
+
+    from rtchannel import Motion, Radar, Scene, simulate
+
+    motion = Motion.procedural("walk", height=1.75, seed=0)     # or Motion.from_file("take.bvh")
+    radar = Radar.seed(direction=1)                               # the seed's 2x2 MIMO radar
+    result = simulate(motion, radar, backend="facets", scene=Scene.room())
+    result.signatures["radar1"].p_vt                              # p(v, t), eq. 7
+    result.save("out/signature.h5"); result.plot("out/")
+
+Names are imported on first use, so `import rtchannel` stays cheap (and works before the
+dependencies are installed, which the Makefile's LLVM check relies on).
+"""
 __version__ = "0.1.0"
+
+_EXPORTS = {
+    "Motion": ("rtchannel.body.skeleton", "Motion"),
+    "Radar": ("rtchannel.radar", "RadarConfig"),
+    "Link": ("rtchannel.radar", "Link"),
+    "Scene": ("rtchannel.scene.spec", "Scene"),
+    "simulate": ("rtchannel.pipeline", "simulate"),
+    "SimulationResult": ("rtchannel.pipeline", "SimulationResult"),
+    "Waveform": ("processing.waveform", "Waveform"),
+    "DSPConfig": ("processing.dsp", "DSPConfig"),
+    "Signature": ("processing.dsp", "Signature"),
+    "load_signatures": ("processing.signature_file", "read_signature_file"),
+    "plot_signatures": ("processing.plots", "plot_all"),
+    "plot_pvt": ("processing.plots", "plot_pvt"),
+    "plot_mean_velocity": ("processing.plots", "plot_mean_velocity"),
+    "plot_range": ("processing.plots", "plot_range"),
+    "BACKENDS": ("rtchannel.backends", "BACKENDS"),
+    "ACTIVITIES": ("rtchannel.motion.procedural", "ACTIVITIES"),
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'rtchannel' has no attribute {name!r}")
+    import importlib
+
+    module, attr = _EXPORTS[name]
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(list(globals()) + list(_EXPORTS))

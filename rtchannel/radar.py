@@ -61,6 +61,8 @@ class RadarConfig(BaseModel):
     waveform: Waveform = Field(default_factory=Waveform)
     dsp: DSPConfig = Field(default_factory=DSPConfig)
     links: list[Link] = Field(default_factory=_seed_links, min_length=1)
+    orientation_deg: float = Field(0.0, allow_inf_nan=False, description="rotation [deg] about z applied to "
+                                   "the links as given (the seed's direction angle); kept for provenance")
 
     @model_validator(mode="after")
     def _unique_names(self) -> "RadarConfig":
@@ -68,6 +70,17 @@ class RadarConfig(BaseModel):
         if len(set(names)) != len(names):
             raise ValueError(f"link names must be unique, got {names}")
         return self
+
+    @classmethod
+    def seed(cls, direction: int = 1, **overrides) -> "RadarConfig":
+        """The seed's 2x2 distributed MIMO radar (two monostatic Ancortek radars, 24.125 GHz) rotated for
+        the seed's direction 1..18; `overrides` replace fields (e.g. ``waveform=Waveform(...)``)."""
+        return cls(**overrides).for_direction(direction)
+
+    @classmethod
+    def monostatic(cls, position, name: str = "radar1", **overrides) -> "RadarConfig":
+        """One monostatic radar at `position` [3] (m), seed waveform and DSP unless overridden."""
+        return cls(links=[Link(name=name, tx=tuple(float(x) for x in position))], **overrides)
 
     @classmethod
     def from_file(cls, path: str | Path) -> "RadarConfig":
@@ -85,7 +98,8 @@ class RadarConfig(BaseModel):
             return None if p is None else tuple(float(x) for x in rz @ np.asarray(p, dtype=float))
 
         links = [link.model_copy(update={"tx": rot(link.tx), "rx": rot(link.rx)}) for link in self.links]
-        return self.model_copy(update={"links": links})
+        return self.model_copy(update={"links": links,
+                                       "orientation_deg": wrap_deg(self.orientation_deg + angle_deg)})
 
     def for_direction(self, direction: int) -> "RadarConfig":
         """The radar set rotated for the seed's direction 1..18 (Radar 1 at 20 (k - 1) degrees)."""
@@ -106,3 +120,6 @@ def direction_angles(direction: int) -> tuple[float, float]:
         raise ValueError(f"direction must be an integer 1..18, got {direction!r}")
     t1 = wrap_deg(20.0 * (direction - 1))
     return t1, wrap_deg(t1 - 90.0)
+
+
+Radar = RadarConfig  # the public name (`from rtchannel import Radar`)

@@ -6,7 +6,7 @@ from processing.ancortek import AncortekFormatError, read_dat, write_dat
 from processing.dsp import signatures
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import RadarConfig
-from rtchannel.simulate import simulate
+from rtchannel.pipeline import simulate
 
 
 @pytest.fixture(scope="module")

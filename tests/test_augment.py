@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from rtchannel.avatar import load_avatar
+from rtchannel.body.avatar import load_avatar
 from rtchannel.motion.augment import augment, mirror, mirror_index
-from rtchannel.skinning import skin_vertices
+from rtchannel.body.skinning import skin_vertices
 from test_skinning import smooth_motion
 
 

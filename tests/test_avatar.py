@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from rtchannel.avatar import LOD_TARGETS, LODS, build_lod, load_avatar
-from rtchannel.scatterers import SCATTERER_NAMES, seed_scatterers
-from rtchannel.skeleton import REST_HEIGHT_M, Motion, avatar_rig
-from rtchannel.skin_markers import skin_markers, skin_scatterer_trajectories
+from rtchannel.body.avatar import LOD_TARGETS, LODS, build_lod, load_avatar
+from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
+from rtchannel.body.skeleton import REST_HEIGHT_M, Motion, avatar_rig
+from rtchannel.body.skin_markers import skin_markers, skin_scatterer_trajectories
 
 
 def test_full_body_group():
@@ -105,7 +105,7 @@ def test_skin_scatterers_move_with_the_body():
 def test_render_smoke(tmp_path):
     # the set-up (make env) installs libLLVM >= 16, so its absence is a failure, not a skip
     from PIL import Image
-    from rtchannel.render import render_scene
+    from rtchannel.scene.render import render_scene
     rig = avatar_rig(1.7)
     motion = Motion(rig, 30.0, np.tile(np.eye(3), (2, rig.n_joints, 1, 1)), np.tile(rig.rest, (2, 1, 1)))
     out = render_scene(motion, [0], [[3.0, 0.0, 1.1]], tmp_path / "scene.png", lod="2k", size=(96, 72), spp=2)

@@ -11,7 +11,7 @@ from rtchannel.backends.facets import facet_paths
 from rtchannel.backends.sionna_rt import sionna_paths
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
-from rtchannel.simulate import process_paths
+from rtchannel.pipeline import process_paths
 
 
 @pytest.fixture(scope="module")

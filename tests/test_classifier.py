@@ -195,7 +195,7 @@ def test_evaluate_recordings_from_dat(trained, tmp_path):
     from processing.ancortek import write_dat
     from rtchannel.motion.procedural import generate
     from rtchannel.radar import RadarConfig, direction_angles
-    from rtchannel.simulate import simulate
+    from rtchannel.pipeline import simulate
 
     reader, pre, x, y, res = trained
     clf = Classifier(model=res.model, preprocess=pre, classes=list(ACTIVITIES), links=["radar1", "radar2"])

@@ -8,7 +8,7 @@ import pytest
 from rtchannel.cli import main
 
 COMMANDS = ["simulate", "render", "bench", "compare", "dataset", "train", "evaluate", "crossval"]
-SHARED = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared"
+from rtchannel.scene.assets import mocap_dir
 
 
 def test_help_for_every_command(capsys):
@@ -78,14 +78,14 @@ def test_console_script_entry_point(tmp_path):
 
 def test_simulate_motion_capture_file(tmp_path):
     out = tmp_path / "mocap"
-    bvh = SHARED / "mocap" / "cmu" / "walk" / "07_01_iclone.bvh"
+    bvh = mocap_dir() / "walk" / "07_02_iclone.bvh"
     assert main(["simulate", "--motion-file", str(bvh), "--start", "-2", "0", "--out", str(out),
                  "--quiet", "--no-plots"]) == 0
     with h5py.File(out / "signature.h5") as f:
         mv = f["radar1"]["mean_velocity"][()]
         # a 1.2-1.5 m/s walk straight toward Radar 1: the body's mean radial velocity is positive
         assert 0.8 < np.median(mv) < 1.8
-        assert "07_01" in f.attrs["config"]
+        assert "07_02" in f.attrs["config"]
 
 
 def test_missing_motion_file_is_one_line(tmp_path, capsys):

@@ -17,7 +17,7 @@ from rtchannel.dataset.plan import expand, load_plan
 from rtchannel.dataset.runner import PlanMismatchError, run_plan
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared"
+from rtchannel.scene.assets import mocap_dir
 SHORT = {"pad_before": 0.2, "pad_after": 0.2}  # 1.3-1.4 s motions keep every item near 0.1 s
 
 
@@ -115,8 +115,8 @@ def test_same_config_same_signatures_other_seed_differs(tmp_path, reference):
 def test_bad_motion_file_is_reported_per_item_and_the_run_completes(tmp_path, capsys):
     folder = tmp_path / "takes"
     folder.mkdir()
-    good = SHARED / "mocap" / "cmu" / "walk" / "02_01_iclone.bvh"
-    assert good.is_file(), f"shared mocap data missing: {good}"
+    good = mocap_dir() / "walk" / "02_01_iclone.bvh"
+    assert good.is_file(), f"mocap data missing: {good}"
     (folder / "a_good.bvh").symlink_to(good)
     (folder / "b_broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")  # truncated
     data = {"name": "files", "motion": {"sources": [{"files": str(folder), "activity": "walk"},

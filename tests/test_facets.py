@@ -3,15 +3,15 @@ import numpy as np
 import pytest
 
 from processing.waveform import C0
-from rtchannel.avatar import load_avatar
+from rtchannel.body.avatar import load_avatar
 from rtchannel.backends.facets import LinkSpec, facet_paths, mesh_paths, trace_frame_indices
 from rtchannel.backends.surface_scattering import SurfaceMaterial
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
-from rtchannel.rt_scene import RadarPlacementError, RTScene, get_scene
-from rtchannel.simulate import process_paths
-from rtchannel.skeleton import Motion
-from rtchannel.skinning import skin_vertices
+from rtchannel.scene.rt_scene import RadarPlacementError, RTScene, get_scene
+from rtchannel.pipeline import process_paths
+from rtchannel.body.skeleton import Motion
+from rtchannel.body.skinning import skin_vertices
 
 LOD = "2k"
 TX = (3.0, 0.0, 1.1)

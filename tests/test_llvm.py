@@ -3,7 +3,7 @@ import sys
 
 import pytest
 
-from rtchannel import llvm
+from rtchannel.scene import llvm
 
 
 def test_finds_llvm_16_or_newer():
@@ -28,7 +28,7 @@ def test_llvm15_from_user_is_not_trusted(monkeypatch, tmp_path):
 
 def test_mitsuba_imports_and_traces_without_abort():
     # In a subprocess: an LLVM abort would kill pytest itself.
-    code = ("from rtchannel.llvm import import_mitsuba; mi = import_mitsuba(); "
+    code = ("from rtchannel.scene.llvm import import_mitsuba; mi = import_mitsuba(); "
             "s = mi.load_dict({'type': 'scene', 's': {'type': 'sphere'}}); "
             "r = mi.Ray3f(mi.Point3f(0, 0, -5), mi.Vector3f(0, 0, 1)); "
             "print(float(s.ray_intersect(r).t[0]))")

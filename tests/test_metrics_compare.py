@@ -58,7 +58,7 @@ def test_compare_rejects_bad_input(capsys):
 
 
 def test_pareto_front():
-    from rtchannel.speed_error import pareto_front
+    from rtchannel.analysis.speed_error import pareto_front
 
     cost = np.array([1.0, 2.0, 3.0, 0.5, 2.5])
     err = np.array([0.5, 0.2, 0.1, 0.9, 0.3])   # (2.5, 0.3) is beaten by (2.0, 0.2)

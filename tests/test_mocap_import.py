@@ -6,21 +6,24 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rtchannel.avatar import load_avatar
+from rtchannel.body.avatar import load_avatar
 from rtchannel.motion.bvh import write_bvh
 from rtchannel.motion.errors import MotionImportError
 from rtchannel.motion.load import load_motion
-from rtchannel.skinning import skin_vertices
+from rtchannel.body.skinning import skin_vertices
+from rtchannel.scene.assets import mocap_dir
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-MOCAP = SHARED / "mocap" / "cmu"
+MOCAP = mocap_dir()
 WALKS = sorted((MOCAP / "walk").glob("*.bvh"))
 C3D_WALK = MOCAP / "walk" / "82_08.c3d"
 C3D_STAND = MOCAP / "stand" / "77_02.c3d"
+SIT_STAND = MOCAP / "sit" / "75_17.bvh"
 
-# ../shared sits beside the repository on every developer machine and in CI: missing data must fail.
-def test_shared_mocap_present():
-    assert len(WALKS) == 10 and C3D_WALK.is_file() and C3D_STAND.is_file(), f"CMU takes missing under {MOCAP}"
+
+# the takes ship with the repository (data/mocap): missing data must fail, not skip
+def test_mocap_present():
+    assert len(WALKS) == 3 and C3D_WALK.is_file() and C3D_STAND.is_file() and SIT_STAND.is_file(), \
+        f"CMU takes missing under {MOCAP}"
 
 
 def needs_data(f):
@@ -202,3 +205,33 @@ def test_units_and_up_axis_overrides():
     m = load_motion(WALKS[0], fps=30.0, height=1.6)
     assert m.fps == 30.0 and m.rig.height == 1.6
     assert m.params["leg_ratio"] == pytest.approx(m.params["height"] / auto.params["height"], rel=1e-6)
+
+
+def test_sit_stand_take_sits_down_then_stands_up():
+    """CMU 75_17 (cgspeed 31-joint rig, CMU units, 30 fps): frame 0 is a reference T-pose, then the subject
+    sits down on a seat, stays seated and stands up again."""
+    m = load_motion(SIT_STAND, activity="sit")
+    assert m.params["units"] == "cmu" and m.params["dropped_leading_frames"] == 1
+    assert abs(m.fps - 30.0) < 1e-3 and m.n_frames == 81
+    r = m.rig
+    hips = m.positions[:, r.index("Hips"), 2]
+    hands = m.positions[:, [r.index("LeftHand"), r.index("RightHand")], 2]
+    # no T-pose left: the hands hang below the shoulders in the first frame
+    assert hands[0].max() < m.positions[0, r.index("LeftArm"), 2] - 0.2
+    standing, seated = hips[:5].mean(), np.percentile(hips, 5)
+    # standing hip-joint height ~0.53 H; seated on a chair-height seat (0.3-0.5 m) it is 0.1 m above it
+    assert 0.5 * m.rig.height < standing < 0.6 * m.rig.height
+    assert 0.3 < seated < 0.55
+    low = np.flatnonzero(hips < seated + 0.05)
+    down = np.flatnonzero(hips < standing - 0.1)
+    # one sit-down (hips descend), a seated plateau of at least 1 s, one stand-up (hips rise back)
+    assert low[0] > 3 and low[-1] - low[0] >= 1.0 * m.fps and np.all(np.diff(low) == 1)
+    assert np.all(np.diff(down) == 1) and down[-1] < m.n_frames - 1
+    assert hips[-1] > standing - 0.05
+    descent = np.diff(hips[:low[0] + 1])
+    ascent = np.diff(hips[low[-1]:])
+    assert descent.min() < -0.01 and ascent.max() > 0.01
+    # seated: thighs roughly horizontal (knee at about hip height)
+    k = (low[0] + low[-1]) // 2
+    knee = m.positions[k, r.index("LeftLeg"), 2]
+    assert abs(knee - hips[k]) < 0.15

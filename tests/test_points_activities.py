@@ -7,8 +7,8 @@ from processing.waveform import C0
 from rtchannel.backends.points import point_paths
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
-from rtchannel.simulate import simulate
-from rtchannel.skeleton import JOINT_INDEX
+from rtchannel.pipeline import simulate
+from rtchannel.body.skeleton import JOINT_INDEX
 
 
 def test_point_delays_are_exact_geometry():

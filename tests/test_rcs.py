@@ -15,7 +15,7 @@ import pytest
 
 from rtchannel.backends.rcs import (PEC, lambertian_sphere_rcs, monostatic_rcs, plate_mesh, plate_po_rcs,
                                     sionna_backend, sphere_mesh)
-from rtchannel.rt_scene import SkinMaterial
+from rtchannel.scene.rt_scene import SkinMaterial
 
 LAMBERT_PEC = SkinMaterial(relative_permittivity=1.0, conductivity=1e8, scattering_coefficient=1.0)
 R = 3.0

@@ -14,7 +14,7 @@ from rtchannel.backends.rcs import plate_mesh, sphere_mesh
 from rtchannel.backends.surface_scattering import (SurfaceMaterial, diffuse_plate_rcs, diffuse_sphere_rcs,
                                                    optical_sphere_rcs, po_plate_rcs, rcs_amplitude,
                                                    triangle_phase_integral)
-from rtchannel.rt_scene import RTScene
+from rtchannel.scene.rt_scene import RTScene
 
 F0 = 24.125e9
 LAM = C0 / F0

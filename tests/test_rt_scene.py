@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from rtchannel.rt_scene import SCENES, RadarPlacementError, RTScene, SkinMaterial, gabriel_dry_skin, get_scene
+from rtchannel.scene.rt_scene import SCENES, RadarPlacementError, RTScene, SkinMaterial, gabriel_dry_skin, get_scene
 
 
 def _box_mesh(centre, half):

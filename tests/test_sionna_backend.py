@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 
 from processing.waveform import C0
-from rtchannel.avatar import load_avatar
+from rtchannel.body.avatar import load_avatar
 from rtchannel.backends.sionna_rt import path_geometry, place_antennas, trace_frames
-from rtchannel.meshgeom import closest_point_on_triangles
+from rtchannel.body.meshgeom import closest_point_on_triangles
 from rtchannel.radar import Link, RadarConfig
-from rtchannel.rt_scene import SCENES, RadarPlacementError, RTScene, get_scene
-from rtchannel.simulate import process_paths
+from rtchannel.scene.rt_scene import SCENES, RadarPlacementError, RTScene, get_scene
+from rtchannel.pipeline import process_paths
 
 RADAR1 = (3.0, 0.0, 1.1)
 # 1e6 rays: ray spacing ~9 mm at 2.5 m, so the nearest diffuse hit lies within ~5 mm of the closest body

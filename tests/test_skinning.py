@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from rtchannel.avatar import LODS, load_avatar
-from rtchannel.skeleton import Motion, avatar_rig, forward_kinematics
-from rtchannel.skinning import face_normals_and_areas, skin, skin_velocities, skin_vertices
+from rtchannel.body.avatar import LODS, load_avatar
+from rtchannel.body.skeleton import Motion, avatar_rig, forward_kinematics
+from rtchannel.body.skinning import face_normals_and_areas, skin, skin_velocities, skin_vertices
 
 
 def rest_motion(rig, frames=3, fps=30.0):

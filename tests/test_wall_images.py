@@ -8,10 +8,10 @@ from rtchannel.backends.surface_scattering import fresnel, slab_reflection
 from rtchannel.backends.wall_images import PlanarWall, in_convex_polygon, mirror, reflection_points
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
-from rtchannel.rt_scene import get_scene
-from rtchannel.skeleton import Motion
-from rtchannel.avatar import load_avatar
-from rtchannel.skinning import skin_vertices
+from rtchannel.scene.rt_scene import get_scene
+from rtchannel.body.skeleton import Motion
+from rtchannel.body.avatar import load_avatar
+from rtchannel.body.skinning import skin_vertices
 
 LOD = "2k"
 WALL = PlanarWall("w", point=np.array([4.0, 0.0, 1.5]), normal=np.array([-1.0, 0.0, 0.0]),

@@ -1,1 +1,43 @@
-"""Scattering backends: each turns a pose sequence into a PathSet per radar link."""
+"""Scattering backends: each turns a pose sequence into a PathSet per radar link.
+
+The registry below imports a backend only when it is asked for: the mesh backends load Mitsuba, numba
+kernels and the avatar, which a points-only run never needs.
+"""
+from __future__ import annotations
+
+import inspect
+
+BACKENDS = ("points", "facets", "sionna")
+MESH_BACKENDS = ("facets", "sionna")
+# keywords the pipeline or the dataset runner sets itself; users never pass them as options
+RESERVED_OPTIONS = ("motion", "radar", "progress", "timing", "stats")
+
+
+def backend_function(backend: str):
+    """The path-set function `f(motion, radar, **options) -> {link: PathSet}` of the named backend."""
+    if backend == "points":
+        from rtchannel.backends.points import point_paths
+
+        return point_paths
+    if backend == "facets":
+        from rtchannel.backends.facets import facet_paths
+
+        return facet_paths
+    if backend == "sionna":
+        from rtchannel.backends.sionna_rt import sionna_paths
+
+        return sionna_paths
+    raise ValueError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+
+
+def unknown_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> list[str]:
+    """The option names the backend does not accept (or that are reserved), in the order given."""
+    accepted = inspect.signature(backend_function(backend)).parameters
+    return [name for name in options if name not in accepted or name in reserved]
+
+
+def check_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> None:
+    """Raise ValueError naming the first option the backend does not accept (or that is reserved)."""
+    bad = unknown_options(backend, options, reserved)
+    if bad:
+        raise ValueError(f"backend '{backend}' has no option '{bad[0]}'")

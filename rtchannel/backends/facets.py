@@ -44,7 +44,7 @@ from processing.pathset import PathSet
 from rtchannel.backends.facet_assemble import assemble, link_gains, merge_batches
 from rtchannel.backends.surface_scattering import SurfaceMaterial
 from rtchannel.backends.visibility import batch_visibility, caster_for, check_body_clearance
-from rtchannel.skinning import face_normals_and_areas
+from rtchannel.body.skinning import face_normals_and_areas
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ class LinkSpec:
     rx: np.ndarray
 
 
-# Fast defaults (benchmarks/bench_facets.py; error cost in `rtchannel.speed_error`): visibility and gains
+# Fast defaults (benchmarks/bench_facets.py; error cost in `rtchannel.analysis.speed_error`): visibility and gains
 # at 10 Hz (gains interpolated, delays exact every frame), wall images on the 2k mesh (image power kept
 # within 0.05 dB per wall on the bench walk, ~5x fewer image paths), paths whose peak is 40 dB below the
 # link's strongest dropped (0.1 % of the power, ~15 % of the paths).
@@ -101,7 +101,7 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     """Facet path sets of any deforming triangle mesh (the engine behind `facet_paths`).
 
     Args:
-        scene: `rtchannel.rt_scene.RTScene` holding this mesh as its body (``set_body``, ray casts).
+        scene: `rtchannel.scene.rt_scene.RTScene` holding this mesh as its body (``set_body``, ray casts).
         times: frame times [K] (s). vertices: [K, V, 3] (m). faces: [F, 3].
         velocities: vertex velocities [K, V, 3] (m/s) for analytic delay rates, or None.
         links: radar links. wavelength: carrier wavelength [m]. material: the mesh's surface material.
@@ -206,7 +206,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     min_relative_gain_db=None`` is the full-accuracy one (every frame traced, every path kept).
 
     Args:
-        motion: the pose sequence (`rtchannel.skeleton.Motion`); the avatar is scaled to its rig height.
+        motion: the pose sequence (`rtchannel.body.skeleton.Motion`); the avatar is scaled to its rig height.
         radar: `rtchannel.radar.RadarConfig` (links and carrier).
         scene: "room", "free_space", a Mitsuba XML path, or an `RTScene` whose body is this LOD.
         lod: avatar level of detail ("full", "10k", "5k", "2k").
@@ -214,10 +214,10 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
             Coarser than the motion only when below its frame rate.
         walls: include first-order body-wall image paths.
         po: add the physical-optics term to the diffuse gain.
-        skin: `rtchannel.rt_scene.SkinMaterial` (default dry skin at the carrier).
+        skin: `rtchannel.scene.rt_scene.SkinMaterial` (default dry skin at the carrier).
         min_relative_gain_db: drop paths weaker than this (dB, negative) relative to the strongest.
         progress: callable receiving the number of traced frames done.
-        velocity_method: "spline" or "central" (see `rtchannel.skinning`).
+        velocity_method: "spline" or "central" (see `rtchannel.body.skinning`).
         batch_frames: traced frames sharing one BVH build (speed only; grazing facets may flip
             visibility with float32 ray rounding, ~1e-3 of the paths and ~1e-11 of the power).
         timing: optional dict receiving the wall time [s] of "skinning", "clearance", "bvh", "rays", "gains"
@@ -230,11 +230,11 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         {link name: PathSet} with ids f (direct) and f + F (1 + image index) (wall images).
 
     Raises:
-        rtchannel.rt_scene.RadarPlacementError: an antenna closer than 1 cm to the geometry.
+        rtchannel.scene.rt_scene.RadarPlacementError: an antenna closer than 1 cm to the geometry.
     """
-    from rtchannel.avatar import load_avatar
-    from rtchannel.rt_scene import RTScene, get_scene
-    from rtchannel.skinning import blend_points, matrix_derivatives, rest_for_motion
+    from rtchannel.body.avatar import load_avatar
+    from rtchannel.scene.rt_scene import RTScene, get_scene
+    from rtchannel.body.skinning import blend_points, matrix_derivatives, rest_for_motion
 
     wf = radar.waveform
     rt = scene if isinstance(scene, RTScene) else get_scene(scene, lod, motion.rig.height, wf.carrier_hz, skin)
@@ -269,10 +269,10 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
 
 def rcs_backend(skin=None, po: bool = True):
     """A `rtchannel.backends.rcs.BackendFn` for static calibration targets in free space: facets of the
-    mesh with `skin` (an `rtchannel.rt_scene.SkinMaterial`, e.g. `rcs.PEC`; default dry skin) as
+    mesh with `skin` (an `rtchannel.scene.rt_scene.SkinMaterial`, e.g. `rcs.PEC`; default dry skin) as
     material, diffuse plus (if `po`) physical optics. Gains are in the synthesiser's convention, so
     coherent sums must use exp(+j 2 pi f tau)."""
-    from rtchannel.rt_scene import RTScene
+    from rtchannel.scene.rt_scene import RTScene
 
     def run(vertices, faces, radar):
         wf = radar.waveform

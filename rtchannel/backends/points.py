@@ -16,8 +16,8 @@ import numpy as np
 from processing.pathset import PathSet
 from processing.waveform import C0
 from rtchannel.radar import RadarConfig
-from rtchannel.scatterers import PointScatterers, seed_scatterers
-from rtchannel.skeleton import Motion
+from rtchannel.body.scatterers import PointScatterers, seed_scatterers
+from rtchannel.body.skeleton import Motion
 
 
 def link_delays(points: np.ndarray, tx: np.ndarray, rx: np.ndarray) -> np.ndarray:

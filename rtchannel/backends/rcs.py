@@ -26,7 +26,7 @@ import numpy as np
 from processing.pathset import PathSet
 from processing.waveform import C0
 from rtchannel.radar import Link, RadarConfig
-from rtchannel.rt_scene import RTScene, SkinMaterial
+from rtchannel.scene.rt_scene import RTScene, SkinMaterial
 
 # A backend function maps (vertices [V, 3], faces [T, 3], radar) to {link name: PathSet} of one frame.
 BackendFn = Callable[[np.ndarray, np.ndarray, RadarConfig], dict[str, PathSet]]

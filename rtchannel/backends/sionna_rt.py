@@ -45,8 +45,8 @@ import numpy as np
 from processing.pathset import PathSet
 from processing.waveform import C0
 from rtchannel.radar import RadarConfig
-from rtchannel.rt_scene import BODY_ID, RTScene, SkinMaterial, get_scene
-from rtchannel.skeleton import Motion
+from rtchannel.scene.rt_scene import BODY_ID, RTScene, SkinMaterial, get_scene
+from rtchannel.body.skeleton import Motion
 
 NONE, SPECULAR, DIFFUSE, REFRACTION, DIFFRACTION = 0, 1, 2, 4, 8  # sionna.rt.constants.InteractionType
 
@@ -204,8 +204,8 @@ def sionna_paths(motion: Motion, radar: RadarConfig, scene: str = "room", lod: s
     Args:
         motion: pose sequence; the avatar (`lod`) is scaled to its rig height.
         radar: links; every antenna must be >= 1 cm from all geometry in every frame
-            (`rtchannel.rt_scene.RadarPlacementError` otherwise).
-        scene: "room", "free_space" or a Mitsuba XML path (see `rtchannel.rt_scene`).
+            (`rtchannel.scene.rt_scene.RadarPlacementError` otherwise).
+        scene: "room", "free_space" or a Mitsuba XML path (see `rtchannel.scene.rt_scene`).
         lod: avatar level of detail ("full", "10k", "5k", "2k").
         trace_fps: trace at this frame rate (motion resampled); default every motion frame.
         samples_per_src: rays shot per transmitter per frame.
@@ -224,8 +224,8 @@ def sionna_paths(motion: Motion, radar: RadarConfig, scene: str = "room", lod: s
         {link name: PathSet} with ids None, delays [s], gains (|a|^2 = P_r/P_t, iso antennas), and
         delay_rates from per-vertex body velocities. Frames without body paths have gain 0 everywhere.
     """
-    from rtchannel.avatar import load_avatar
-    from rtchannel.skinning import skin_vertices, skin_velocities
+    from rtchannel.body.avatar import load_avatar
+    from rtchannel.body.skinning import skin_vertices, skin_velocities
 
     if trace_fps is not None:
         motion = motion.resampled(trace_fps)

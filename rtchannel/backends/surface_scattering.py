@@ -73,7 +73,7 @@ class SurfaceMaterial:
 
     @classmethod
     def from_skin(cls, skin, frequency_hz: float) -> "SurfaceMaterial":
-        """From an `rtchannel.rt_scene.SkinMaterial` (permittivity, conductivity [S/m], S, pattern)."""
+        """From an `rtchannel.scene.rt_scene.SkinMaterial` (permittivity, conductivity [S/m], S, pattern)."""
         eta = complex(skin.relative_permittivity, -skin.conductivity / (2 * np.pi * frequency_hz * epsilon_0))
         return cls(eta=eta, scattering_coefficient=float(skin.scattering_coefficient),
                    pattern=skin.scattering_pattern, alpha_r=int(skin.alpha_r), alpha_i=int(skin.alpha_i),

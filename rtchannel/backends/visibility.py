@@ -12,7 +12,7 @@ end of some link), which halves the ray count. The rays of every traced frame of
 `FrameBatchCaster`) go to Mitsuba in two calls: all direct rays, then all image legs; casting is cheap
 (~3e7 rays/s), so the Python/numpy work around it is kept vectorised over frames and facets.
 
-The scene is an `rtchannel.rt_scene.RTScene` (or anything with ``mi_scene`` or a ``cast`` method).
+The scene is an `rtchannel.scene.rt_scene.RTScene` (or anything with ``mi_scene`` or a ``cast`` method).
 """
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ def occluded(scene, origins: np.ndarray, directions: np.ndarray, max_t: np.ndarr
         mi_scene = getattr(scene, "scene", None)
     if mi_scene is None:
         return scene.cast(origins, directions, max_t)["hit"]
-    from rtchannel.llvm import import_mitsuba
+    from rtchannel.scene.llvm import import_mitsuba
 
     mi = import_mitsuba()
     o = np.asarray(origins, np.float32).T.copy()
@@ -158,7 +158,7 @@ class FrameBatchCaster:
     """
 
     def __init__(self, static, faces: np.ndarray, n_vertices: int, bounds, batch: int = 16):
-        from rtchannel.llvm import import_mitsuba
+        from rtchannel.scene.llvm import import_mitsuba
 
         mi = self._mi = import_mitsuba()
         lo, hi = (np.asarray(b, float) for b in bounds)
@@ -231,8 +231,8 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
 
     Only frames whose nearest vertex is closer than 0.5 m get the exact point-triangle test; inside is
     judged by the outward normal of the closest triangle."""
-    from rtchannel.meshgeom import closest_point_on_triangles
-    from rtchannel.rt_scene import RadarPlacementError
+    from rtchannel.body.meshgeom import closest_point_on_triangles
+    from rtchannel.scene.rt_scene import RadarPlacementError
 
     for p in sources:
         near = np.flatnonzero(np.einsum("kvi,kvi->kv", vertices - p, vertices - p).min(axis=1) < 0.25)

@@ -5,7 +5,7 @@ the wall's plane, to the facet, plus facet -> rx. It exists (image validity) whe
 
 - the antenna and the facet's centroid are on the room side of the wall (the side its normal points to),
 - the reflection point q, where the segment centroid -> tx' crosses the plane, lies inside the wall
-  polygon (a convex polygon, as `rtchannel.rt_scene.Wall` provides),
+  polygon (a convex polygon, as `rtchannel.scene.rt_scene.Wall` provides),
 - and both legs (tx -> q, q -> facet) are unoccluded (checked by ray casts in `visibility`).
 
 Walls are duck-typed: anything with ``point`` [3], unit ``normal`` [3] (into the room), ``polygon`` [K, 3]
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rtchannel.rt_scene import Wall
+from rtchannel.scene.rt_scene import Wall
 
 # a wall for tests and custom geometry: the scene's own type (area and thickness default to 0)
 PlanarWall = Wall

@@ -19,8 +19,8 @@ from processing.dataset_store import ACTIVITIES, signature_arrays
 from processing.signal_augment import add_clutter, add_noise, signal_power
 from rtchannel.dataset.plan import WorkItem
 from rtchannel.radar import RadarConfig
-from rtchannel.scatterers import SCATTERER_NAMES, seed_scatterers
-from rtchannel.skeleton import Motion, avatar_rig
+from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
+from rtchannel.body.skeleton import Motion, avatar_rig
 
 _CACHE_SIZE = 8
 _MOTIONS: OrderedDict[str, Motion] = OrderedDict()
@@ -91,7 +91,7 @@ def run_item(item: WorkItem) -> dict:
     signal_layer = item.snr_db is not None or item.clutter is not None
     mesh_scale = item.backend != "points" and overall != 1.0  # mesh backends: the set's overall factor
 
-    from rtchannel.simulate import simulate
+    from rtchannel.pipeline import simulate
 
     links, clutter_info = {}, {}
     noise_streams = dict(zip((link.name for link in radar.links), noise_ss.spawn(len(radar.links))))

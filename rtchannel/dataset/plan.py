@@ -24,7 +24,7 @@ from processing.dsp import DSPConfig
 from processing.waveform import Waveform
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
 from rtchannel.radar import Link, direction_angles
-from rtchannel.scatterers import SCATTERER_NAMES
+from rtchannel.body.scatterers import SCATTERER_NAMES
 
 MOTION_SUFFIXES = (".bvh", ".c3d")
 PRESETS_DIR = Path(__file__).with_name("presets")

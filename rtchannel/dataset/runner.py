@@ -84,7 +84,7 @@ def configure_worker(backend: str, dr_threads: int | None) -> None:
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(1)
     if backend != "points" and dr_threads:
-        from rtchannel.llvm import import_mitsuba
+        from rtchannel.scene.llvm import import_mitsuba
 
         import_mitsuba()
         import drjit

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from rtchannel.skeleton import Motion
+from rtchannel.body.skeleton import Motion
 
 
 def _draw(value, rng, name):

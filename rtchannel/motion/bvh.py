@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from rtchannel.motion.errors import MotionImportError
 from rtchannel.motion.rigs import cc_neutral
 from rtchannel.motion.source import SourceMotion, guess_units, guess_up, parse_units, up_rotation
-from rtchannel.skeleton import Motion
+from rtchannel.body.skeleton import Motion
 
 END = "/End"  # suffix naming a joint's End Site point
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from rtchannel.motion.errors import MotionImportError
-from rtchannel.motion.retarget import JOINT_MAPS, drop_leading_discontinuities, retarget
-from rtchannel.skeleton import Motion
+from rtchannel.motion.retarget import drop_leading_discontinuities, retarget
+from rtchannel.body.skeleton import Motion
 
 FORMATS = (".bvh", ".c3d")
 
@@ -49,7 +49,7 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
         from rtchannel.motion.c3d import read_c3d
 
         src = read_c3d(p, units=units, up=up, max_gap_s=max_gap_s, on_long_gap=on_long_gap)
-    src, dropped = drop_leading_discontinuities(src, JOINT_MAPS[src.kind]["hips"])
+    src, dropped = drop_leading_discontinuities(src)
     src.info["dropped_leading_frames"] = dropped
     if src.n_frames < 2:
         raise MotionImportError(p, "fewer than two usable frames")

@@ -20,7 +20,7 @@ import numpy as np
 
 from rtchannel.motion.rigs import JOINT_MAPS, POSTURE
 from rtchannel.motion.source import SourceMotion
-from rtchannel.skeleton import Motion, Rig, avatar_rig
+from rtchannel.body.skeleton import Motion, Rig, avatar_rig
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -190,8 +190,8 @@ def chain_positions(rig: Rig, rots: np.ndarray, root: np.ndarray) -> np.ndarray:
 
 def sole_points(motion: Motion) -> dict[str, np.ndarray]:
     """Skinned sole vertices per foot, {"Left": [F, n, 3], "Right": [F, n, 3]} (m), full mesh."""
-    from rtchannel.avatar import load_avatar
-    from rtchannel.skinning import blend_points, rest_for_motion
+    from rtchannel.body.avatar import load_avatar
+    from rtchannel.body.skinning import blend_points, rest_for_motion
 
     av = load_avatar("full")
     rest = rest_for_motion(av, motion)
@@ -294,22 +294,28 @@ def facing_yaw(motion: Motion, frames: int = 15) -> float:
     return float(np.arctan2(-left[0], left[1]))
 
 
-def drop_leading_discontinuities(src: SourceMotion, hips: tuple[str, str], max_scan: int = 10,
+def drop_leading_discontinuities(src: SourceMotion, max_scan: int = 10,
                                  max_speed: float = 8.0) -> tuple[SourceMotion, int]:
-    """Drop leading frames cut off from the rest by a jump (e.g. a converter's T-pose in frame 0).
+    """Drop leading frames cut off from the rest by a jump (e.g. a converter's or a capture system's
+    reference T-pose in frame 0).
 
-    A transition is a jump when the hip midpoint moves faster than `max_speed` m/s and more than ten
-    times the take's median speed; only the first `max_scan` frames are examined.
+    A transition is a jump when any tracked point (joint, end site or marker) moves faster than
+    `max_speed` m/s and more than ten times that point's median speed over the take; only the first
+    `max_scan` frames are examined. Every point counts, not only the hips: a reference pose often
+    keeps the root where the take starts and differs only in the arms (CMU 75_17: hands 0.5 m apart
+    between frames 0 and 1 at 30 fps, 15 m/s).
     """
-    mid = 0.5 * (src.points[hips[0]] + src.points[hips[1]])
-    speed = np.linalg.norm(np.diff(mid, axis=0), axis=1) * src.fps
-    if len(speed) < 3:
+    pts = np.stack(list(src.points.values()), axis=1)  # [F, M, 3]
+    if len(pts) < 4:
         return src, 0
-    typical = float(np.median(speed))
-    jumps = np.flatnonzero((speed[:max_scan] > max_speed) & (speed[:max_scan] > 10 * typical))
-    if not len(jumps):
+    speed = np.linalg.norm(np.diff(pts, axis=0), axis=2) * src.fps  # [F-1, M]
+    typical = np.nanmedian(speed, axis=0)
+    with np.errstate(invalid="ignore"):
+        jump = (speed[:max_scan] > max_speed) & (speed[:max_scan] > 10 * typical)
+    rows = np.flatnonzero(jump.any(axis=1))
+    if not len(rows):
         return src, 0
-    k = int(jumps[-1]) + 1
+    k = int(rows[-1]) + 1
     return src.sliced(k), k
 
 

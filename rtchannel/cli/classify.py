@@ -18,7 +18,7 @@ _COND = re.compile(r"^\s*([A-Za-z0-9_.]+)\s*(!=|=|~)\s*(.*?)\s*$")
 
 
 def _user_error():
-    from rtchannel.cli import UserError
+    from rtchannel.cli.common import UserError
 
     return UserError
 

@@ -62,7 +62,7 @@ QUICK: tuple[Setting, ...] = tuple(s for s in SWEEP if s.backend != "sionna" and
 
 def _run(setting: Setting, motion, radar: RadarConfig, repeats: int) -> tuple[float, dict]:
     """(median wall time [s] of the whole chain, signatures {link: Signature}) of one setting."""
-    from rtchannel.simulate import simulate
+    from rtchannel.pipeline import simulate
 
     times, res = [], None
     for _ in range(repeats):
@@ -78,7 +78,7 @@ def sweep(motion, radar: RadarConfig, settings=SWEEP, reference: Setting = REFER
     backend so that scene loading and kernel compilation are not timed). Returns one row per setting."""
     from dataclasses import replace
 
-    from rtchannel.simulate import simulate
+    from rtchannel.pipeline import simulate
 
     warmed: set[str] = set()
     n = max(int(0.3 * motion.fps), 4)

@@ -7,11 +7,13 @@ from pathlib import Path
 def cmd_compare(args) -> int:
     from tqdm import tqdm
 
-    from rtchannel.cli import UserError, load_radar, parse_options
-    from rtchannel.compare import compare
+    from rtchannel.cli.common import UserError, load_radar, parse_options, split_list
+    from rtchannel.analysis.compare import compare
     from rtchannel.motion.procedural import ACTIVITIES
-    from rtchannel.simulate import BACKENDS
+    from rtchannel.backends import BACKENDS
 
+    args.backends = split_list(args.backends)
+    args.activities = split_list(args.activities)
     bad = [b for b in args.backends if b not in BACKENDS]
     if bad or len(args.backends) < 2:
         raise UserError(f"--backends needs two or more of {', '.join(BACKENDS)}; got {' '.join(args.backends)}")
@@ -35,7 +37,7 @@ def cmd_compare(args) -> int:
 
 def add_compare(sub) -> None:
     """Register the `compare` subcommand."""
-    from rtchannel.cli import add_radar_args
+    from rtchannel.cli.common import add_radar_args
     from rtchannel.motion.procedural import ACTIVITIES
 
     p = sub.add_parser("compare", help="one set of activities through several backends: DTW table + p(v,t) figure",
@@ -43,7 +45,7 @@ def add_compare(sub) -> None:
                        "seed's Table I between the first backend and each other one (normalised DTW of mean "
                        "radial velocities for every activity pair), per-activity p(v,t) total-variation and "
                        "mean-velocity RMSE, and a side-by-side PNG of p(v,t).")
-    p.add_argument("--backends", nargs="+", default=["points", "facets"], help="backends (default points facets)")
+    p.add_argument("--backends", nargs="+", default=["points", "facets"], help="backends, space- or comma-separated (default points facets)")
     p.add_argument("--activities", nargs="+", default=list(ACTIVITIES), help="activities (default all five)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--option", action="append", metavar="BACKEND.NAME=VALUE",

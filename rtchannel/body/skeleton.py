@@ -18,7 +18,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, Slerp
 
-from rtchannel.assets import avatar_dir
+from rtchannel.scene.assets import avatar_dir
 
 # Topological order: every parent precedes its children.
 JOINT_NAMES: tuple[str, ...] = (
@@ -114,6 +114,33 @@ class Motion:
     positions: np.ndarray
     activity: str = ""
     params: dict = field(default_factory=dict)
+
+    @classmethod
+    def procedural(cls, activity: str, **params) -> "Motion":
+        """A procedural activity ("walk", "fall", "sit", "stand", "pick") on the avatar rig.
+
+        `params` are `rtchannel.motion.procedural.ProceduralParams` fields (height [m], speed [m/s],
+        duration [s], distance [m], heading_deg, start (x, y) [m], seed, fps [Hz], ...). A walk without
+        an explicit `start` is centred on the origin along its heading, so the default 4 m walk toward
+        the seed's Radar 1 (3 m away) stops 1 m short of it; other activities happen over the origin.
+        """
+        from rtchannel.motion.procedural import ProceduralParams, generate
+
+        if activity == "walk" and "start" not in params:
+            p = ProceduralParams(**params)
+            d = p.distance if p.distance is not None else (4.0 if p.duration is None else p.speed * p.duration)
+            h = np.deg2rad(p.heading_deg)
+            params = {**params, "start": (-d / 2 * np.cos(h), -d / 2 * np.sin(h))}
+        return generate(activity, **params)
+
+    @classmethod
+    def from_file(cls, path, **options) -> "Motion":
+        """A BVH or C3D motion-capture take retargeted onto the avatar rig (metres, z up, soles on the
+        floor, starting over the origin facing +x); `options` as `rtchannel.motion.load.load_motion`
+        (height [m], activity, fps [Hz], units, up, ...)."""
+        from rtchannel.motion.load import load_motion
+
+        return load_motion(path, **options)
 
     def __post_init__(self) -> None:
         f, j = self.positions.shape[:2]

@@ -1,6 +1,6 @@
 """The seed's 21 point scatterers as fixed points on the avatar's skin (triangle + barycentric).
 
-`rtchannel.scatterers` places each scatterer on a bone, inside the body. Here each one is moved out to
+`rtchannel.body.scatterers` places each scatterer on a bone, inside the body. Here each one is moved out to
 the skin once, in the rest pose of the full mesh: a ray from the bone point along a per-part
 direction (front for head, neck, trunk and legs; outward for shoulders and arms; up for feet) meets
 the surface, and that surface point is kept as (triangle, barycentric coordinates), so it moves with
@@ -16,11 +16,11 @@ from functools import lru_cache
 import numpy as np
 from scipy import sparse
 
-from rtchannel.avatar import Avatar, load_avatar
-from rtchannel.meshgeom import closest_points_on_mesh, ray_first_hit
-from rtchannel.scatterers import SCATTERER_NAMES, seed_scatterers
-from rtchannel.skeleton import Motion
-from rtchannel.skinning import blend_points, matrix_derivatives
+from rtchannel.body.avatar import Avatar, load_avatar
+from rtchannel.body.meshgeom import closest_points_on_mesh, ray_first_hit
+from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
+from rtchannel.body.skeleton import Motion
+from rtchannel.body.skinning import blend_points, matrix_derivatives
 
 _FRONT, _UP = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
 _MAX_RAY_M = 0.25
@@ -37,7 +37,7 @@ class SkinMarkers:
     """Scatterers attached to an avatar's surface.
 
     Attributes:
-        names: scatterer names [M] (`rtchannel.scatterers.SCATTERER_NAMES` order).
+        names: scatterer names [M] (`rtchannel.body.scatterers.SCATTERER_NAMES` order).
         faces: triangle index per scatterer [M] (into the avatar's faces).
         bary: barycentric coordinates [M, 3].
         gains: default amplitude gains [M] (as in `seed_scatterers`).
@@ -97,7 +97,7 @@ def skin_markers(avatar: Avatar) -> SkinMarkers:
 
 def skin_scatterer_trajectories(avatar: Avatar, motion: Motion, velocities: bool = False, method: str = "spline"):
     """Positions [F, 21, 3] (m) of the skin scatterers over the motion, and velocities [F, 21, 3] (m/s)
-    when `velocities` (derivative as in `rtchannel.skinning`).
+    when `velocities` (derivative as in `rtchannel.body.skinning`).
 
     Returns positions, or (positions, velocities).
     """

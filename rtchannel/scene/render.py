@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rtchannel.avatar import load_avatar
-from rtchannel.skeleton import Motion
-from rtchannel.skinning import skin_vertices
+from rtchannel.body.avatar import load_avatar
+from rtchannel.body.skeleton import Motion
+from rtchannel.body.skinning import skin_vertices
 
 _PALETTE = ((0.80, 0.35, 0.25), (0.25, 0.50, 0.80), (0.30, 0.70, 0.35), (0.85, 0.65, 0.20),
             (0.60, 0.35, 0.75), (0.20, 0.70, 0.70), (0.75, 0.45, 0.55), (0.55, 0.55, 0.55))
@@ -19,7 +19,7 @@ _RADAR_COLOUR = (0.95, 0.05, 0.05)
 
 
 def _mi():
-    from rtchannel.llvm import import_mitsuba
+    from rtchannel.scene.llvm import import_mitsuba
 
     return import_mitsuba("llvm_ad_rgb")
 

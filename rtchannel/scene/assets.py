@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def avatar_dir() -> Path:
@@ -15,3 +15,8 @@ def avatar_dir() -> Path:
 def scenes_dir() -> Path:
     """Folder holding the Mitsuba scene files."""
     return REPO_ROOT / "scenes"
+
+
+def mocap_dir() -> Path:
+    """Folder holding the CMU motion-capture takes shipped with the project (see its README)."""
+    return REPO_ROOT / "data" / "mocap" / "cmu"

@@ -31,8 +31,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
-from rtchannel.assets import scenes_dir
-from rtchannel.meshgeom import closest_point_on_triangles
+from rtchannel.scene.assets import scenes_dir
+from rtchannel.body.meshgeom import closest_point_on_triangles
 
 SCENES: dict[str, Path] = {"room": scenes_dir() / "room.xml", "free_space": scenes_dir() / "free_space.xml"}
 BODY_ID = "body"
@@ -132,8 +132,11 @@ class Wall:
     area: float = 0.0
 
 
-def resolve_scene(scene: str | Path) -> Path:
-    """Path of a scene: a name in `SCENES` or a Mitsuba XML file; raises ValueError if missing."""
+def resolve_scene(scene) -> Path:
+    """Path of a scene: a name in `SCENES`, a Mitsuba XML file or a `rtchannel.scene.spec.Scene`;
+    raises ValueError if missing."""
+    if hasattr(scene, "xml_path"):
+        return scene.xml_path()
     path = SCENES.get(str(scene), Path(scene))
     if not path.is_file():
         raise ValueError(f"scene '{scene}' is neither one of {', '.join(SCENES)} nor an existing XML file")
@@ -141,7 +144,7 @@ def resolve_scene(scene: str | Path) -> Path:
 
 
 def _mi():
-    from rtchannel.llvm import import_mitsuba
+    from rtchannel.scene.llvm import import_mitsuba
 
     return import_mitsuba()
 
@@ -404,7 +407,7 @@ def get_scene(scene: str | Path, lod: str, height: float, frequency_hz: float,
     """Cached `RTScene` with the avatar (`lod`, scaled to `height` m) as body, so batch workers keep the
     scene and Dr.Jit's compiled kernels warm. The body is returned in the rest pose (a cached scene is
     reset, ~10 ms, since a previous user left it in its last pose); call `set_body`."""
-    from rtchannel.avatar import load_avatar
+    from rtchannel.body.avatar import load_avatar
 
     key = (str(resolve_scene(scene)), lod, round(float(height), 6), float(frequency_hz), skin)
     if key in _CACHE:

@@ -28,7 +28,7 @@ def add_dataset(sub) -> None:
 def cmd_dataset(args) -> int:
     from pydantic import ValidationError
 
-    from rtchannel.cli import UserError, _validation_line
+    from rtchannel.cli.common import UserError, validation_line
 
     if args.info is not None:
         from processing.dataset_store import DatasetReader
@@ -51,19 +51,17 @@ def cmd_dataset(args) -> int:
         plan = load_plan(path, backend=args.backend)
         items = expand(plan)
     except ValidationError as e:
-        raise UserError(_validation_line(e, f"plan {args.config}")) from None
+        raise UserError(validation_line(e, f"plan {args.config}")) from None
     except (FileNotFoundError, ValueError) as e:
         raise UserError(f"plan {args.config}: {e}") from None
-    import inspect
-
-    from rtchannel.simulate import BACKENDS, backend_function
+    from rtchannel.backends import BACKENDS, unknown_options
 
     if plan.backend not in BACKENDS:
         raise UserError(f"plan {args.config}: unknown backend {plan.backend!r}; choose one of {', '.join(BACKENDS)}")
-    accepted = inspect.signature(backend_function(plan.backend)).parameters
-    unknown = [k for k in plan.backend_options if k not in accepted or k in ("motion", "radar", "gains", "progress")]
-    if unknown:
-        raise UserError(f"plan {args.config}: backend_options.{unknown[0]}: backend {plan.backend!r} has no such "
+    bad = unknown_options(plan.backend, plan.backend_options,
+                          reserved=("motion", "radar", "gains", "progress", "timing", "stats"))
+    if bad:
+        raise UserError(f"plan {args.config}: backend_options.{bad[0]}: backend {plan.backend!r} has no such "
                         f"option (or the dataset runner sets it)")
     if args.dry_run:
         from collections import Counter

@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 from scipy import sparse
 
-from rtchannel.assets import avatar_dir
-from rtchannel.meshgeom import closest_points_on_mesh
-from rtchannel.skeleton import JOINT_INDEX, JOINT_NAMES, SOLE_OFFSET_M, Rig, avatar_rig
+from rtchannel.scene.assets import avatar_dir
+from rtchannel.body.meshgeom import closest_points_on_mesh
+from rtchannel.body.skeleton import JOINT_INDEX, JOINT_NAMES, SOLE_OFFSET_M, Rig, avatar_rig
 
 LOD_TARGETS = {"10k": 10_000, "5k": 5_000, "2k": 2_000}
 LODS = ("full", *LOD_TARGETS)

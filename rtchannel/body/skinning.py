@@ -21,9 +21,9 @@ import numpy as np
 from scipy import sparse
 from scipy.interpolate import CubicSpline
 
-from rtchannel.avatar import Avatar
-from rtchannel.meshgeom import vertex_face_incidence
-from rtchannel.skeleton import Motion
+from rtchannel.body.avatar import Avatar
+from rtchannel.body.meshgeom import vertex_face_incidence
+from rtchannel.body.skeleton import Motion
 
 # Frames per block: keeps the blended [V, frames, 12] matrices near 50 MB for the full mesh.
 _BLOCK_ELEMENTS = 6_000_000

@@ -11,7 +11,7 @@ import numpy as np
 from processing.metrics import normalised_dtw, signature_distances
 from rtchannel.motion.procedural import ACTIVITIES, generate
 from rtchannel.radar import RadarConfig
-from rtchannel.simulate import simulate
+from rtchannel.pipeline import simulate
 
 
 def run_backends(backends: list[str], activities: list[str], radar: RadarConfig, seed: int = 0,

@@ -1,0 +1,6 @@
+"""`python -m rtchannel` = the `rtchannel` command."""
+import sys
+
+from rtchannel.cli import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""Cross-validation of the backends: Table-I comparisons and the speed-against-error sweep."""

@@ -1,0 +1,101 @@
+"""What every `rtchannel` command shares: the user-error type, argument groups for motion and radar,
+option parsing, and building the API objects (`Motion`, `Radar`) from arguments."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pydantic import ValidationError
+
+EXIT_USAGE = 2
+
+
+class UserError(Exception):
+    """A problem with what the user asked for; printed as one line, exit status 2."""
+
+
+def validation_line(err: ValidationError, what: str) -> str:
+    """One line naming the first invalid field of a pydantic error (and how many more there are)."""
+    first = err.errors()[0]
+    loc = ".".join(str(x) for x in first.get("loc", ())) or "(root)"
+    more = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
+    return f"{what}: {loc}: {first.get('msg', 'invalid value')}{more}"
+
+
+def add_motion_args(p) -> None:
+    """Arguments choosing a procedural activity or a motion-capture file (read by `build_motion`)."""
+    p.add_argument("--activity", default="walk", help="fall, walk, stand, sit or pick (default walk)")
+    p.add_argument("--motion-file", type=Path, help="BVH or C3D motion capture instead of a procedural motion")
+    p.add_argument("--height", type=float, default=1.75, help="body height [m] (default 1.75)")
+    p.add_argument("--speed", type=float, help="walking speed [m/s] (procedural walk only)")
+    p.add_argument("--duration", type=float, help="activity duration [s] (procedural)")
+    p.add_argument("--distance", type=float, help="walking distance [m] (procedural walk only, default 4)")
+    p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"),
+                   help="start of the hips' ground point [m]; default: walks are centred on the origin "
+                   "(toward Radar 1 at direction 1), other activities start at the origin")
+    p.add_argument("--fps", type=float, default=60.0, help="motion frame rate [Hz] (default 60)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def add_radar_args(p) -> None:
+    """--radar-config and the mutually exclusive --direction / --angle-deg (read by `load_radar`)."""
+    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--direction", type=int, default=1, help="seed direction 1..18 (Radar 1 at 20(k-1) deg)")
+    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z instead [deg]")
+
+
+def split_list(values: list[str] | None) -> list[str]:
+    """Items given space- or comma-separated (``--backends points,facets`` = ``--backends points facets``)."""
+    return [v for item in values or [] for v in item.split(",") if v]
+
+
+def parse_options(items: list[str] | None, per_backend: bool = False) -> dict:
+    """`NAME=VALUE` items -> {name: value}; with `per_backend`, `BACKEND.NAME=VALUE` -> {backend: {name:
+    value}}. Values are parsed as YAML scalars (numbers, true/false, null)."""
+    import yaml
+
+    out: dict = {}
+    form = "BACKEND.NAME=VALUE" if per_backend else "NAME=VALUE"
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        backend, dot, name = key.partition(".") if per_backend else ("", ".", key)
+        if not sep or not dot or not name or (per_backend and not backend):
+            raise UserError(f"--option must look like {form}, got '{item}'")
+        (out.setdefault(backend, {}) if per_backend else out)[name] = yaml.safe_load(value)
+    return out
+
+
+def load_radar(args):
+    """The radar of --radar-config (default: the seed's 2x2) rotated by --angle-deg or --direction."""
+    from rtchannel.radar import RadarConfig, direction_angles
+
+    if args.radar_config is not None and not args.radar_config.is_file():
+        raise UserError(f"radar config file not found: {args.radar_config}")
+    try:
+        radar = RadarConfig.from_file(args.radar_config) if args.radar_config else RadarConfig()
+    except ValidationError as e:
+        raise UserError(validation_line(e, f"radar config {args.radar_config}")) from None
+    angle = args.angle_deg if args.angle_deg is not None else direction_angles(args.direction)[0]
+    return radar.rotated(angle), angle
+
+
+def build_motion(args):
+    """The motion the user asked for: a motion-capture file or a procedural activity."""
+    from rtchannel.body.skeleton import Motion
+
+    if args.motion_file is not None:
+        if not args.motion_file.is_file():
+            raise UserError(f"motion file not found: {args.motion_file}")
+        motion = Motion.from_file(args.motion_file, height=args.height, activity=args.activity)
+        if args.start is not None:
+            motion = motion.transformed(0.0, offset=(*(np.asarray(args.start) - motion.positions[0, 0, :2]), 0.0))
+        return motion if args.fps == motion.fps else motion.resampled(args.fps)
+    params = {k: v for k, v in (("speed", args.speed), ("duration", args.duration),
+                                ("distance", args.distance)) if v is not None}
+    if args.start is not None:
+        params["start"] = tuple(args.start)
+    try:
+        return Motion.procedural(args.activity, height=args.height, fps=args.fps, seed=args.seed, **params)
+    except ValidationError as e:
+        raise UserError(validation_line(e, "motion parameters")) from None

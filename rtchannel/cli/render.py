@@ -1,0 +1,38 @@
+"""`rtchannel render`: a picture of the scene the ray tracer uses, with the body and the radars."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rtchannel.cli.common import UserError, add_motion_args, add_radar_args, build_motion, load_radar
+
+
+def add_render(sub) -> None:
+    """Register the `render` subcommand."""
+    p = sub.add_parser("render", help="render the scene (skinned body, radars) to PNG/GIF",
+                       description="Render the skinned avatar at chosen frames with the radar positions "
+                       "(Mitsuba, the ray tracer's own renderer), plus an animation strip of the activity.")
+    add_motion_args(p)
+    p.add_argument("--out", required=True, type=Path, help="scene PNG to write")
+    p.add_argument("--strip", type=Path, help="also write an animation strip (.png) or animation (.gif)")
+    p.add_argument("--frames", type=int, nargs="+", help="frame indices (default: 5 evenly spaced)")
+    add_radar_args(p)
+    p.add_argument("--lod", default="10k", help="avatar level of detail: full, 10k, 5k, 2k (default 10k)")
+    p.set_defaults(func=cmd_render)
+
+
+def cmd_render(args) -> int:
+    from rtchannel.scene.render import render_scene, render_strip
+
+    radar, _ = load_radar(args)
+    motion = build_motion(args)
+    frames = args.frames or list(np.linspace(0, motion.n_frames - 1, 5).round().astype(int))
+    bad = [f for f in frames if not 0 <= f < motion.n_frames]
+    if bad:
+        raise UserError(f"frames {bad} outside 0..{motion.n_frames - 1}")
+    antennas = [p for link in radar.links for p in {tuple(link.tx_pos), tuple(link.rx_pos)}]
+    print(f"wrote {render_scene(motion, frames, antennas, args.out, lod=args.lod)}")
+    if args.strip:
+        print(f"wrote {render_strip(motion, args.strip, radar_positions=antennas)}")
+    return 0

@@ -1,0 +1,156 @@
+"""One simulation: motion -> backend paths -> shared FMCW synthesiser -> DSP signatures, per link.
+
+`simulate` is the library's single entry point (also exported as `rtchannel.simulate`); the CLI, the
+dataset runner and the analysis tools all go through it.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from processing.dsp import Signature, signatures
+from processing.pathset import PathSet
+from processing.synthesis import iter_synthesis
+from rtchannel.backends import MESH_BACKENDS, backend_function
+from rtchannel.body.skeleton import Motion
+from rtchannel.radar import RadarConfig
+
+
+@dataclass
+class LinkResult:
+    """Raw IQ (if kept) and signatures of one link; chirp start times [s]."""
+
+    signature: Signature
+    chirp_times: np.ndarray
+    iq: np.ndarray | None = None
+
+
+@dataclass
+class SimulationResult:
+    """Per-link results, the wall-clock split [s] between backend, synthesis and DSP, and every
+    parameter that produced them (`config`, JSON-serialisable; stored by `save`)."""
+
+    links: dict[str, LinkResult]
+    timing: dict[str, float] = field(default_factory=dict)
+    config: dict = field(default_factory=dict)
+
+    @property
+    def signatures(self) -> dict[str, Signature]:
+        """{link name: Signature} (p(v,t), mean velocity, range distribution, ...)."""
+        return {name: r.signature for name, r in self.links.items()}
+
+    @property
+    def iq(self) -> dict[str, np.ndarray]:
+        """{link name: raw IQ [chirps, samples] complex64} of the links whose IQ was kept (`keep_iq`)."""
+        return {name: r.iq for name, r in self.links.items() if r.iq is not None}
+
+    def save(self, path: str | Path, seed: int | None = None) -> Path:
+        """Write `signature.h5` (DESIGN.md layout, atomically) with the parameters that made it; the raw IQ
+        is stored for links that kept it. Returns the path."""
+        from processing.signature_file import write_signature_file
+
+        cfg = self.config
+        radar = cfg.get("radar", {})
+        links = {lk["name"]: lk for lk in radar.get("links", [])}
+        link_attrs = {n: {"tx": np.asarray(lk["tx"], float),
+                          "rx": np.asarray(lk["tx"] if lk.get("rx") is None else lk["rx"], float)}
+                      for n, lk in links.items()}
+        motion = cfg.get("motion", {})
+        return write_signature_file(
+            path, self.signatures, activity=cfg.get("activity", ""), backend=cfg.get("backend", ""),
+            seed=int(motion.get("seed", 0) if seed is None else seed),
+            direction_deg=float(radar.get("orientation_deg", 0.0)), config=cfg, link_attrs=link_attrs,
+            iq=self.iq or None)
+
+    def plot(self, out_dir: str | Path, title: str | None = None) -> list[Path]:
+        """PNG figures (p(v,t), mean velocity, range-time) into `out_dir`; returns their paths."""
+        from processing.plots import plot_all
+
+        if title is None:
+            c = self.config
+            title = f"{c.get('activity', '')} ({c.get('backend', '')}, {c.get('radar', {}).get('orientation_deg', 0):g} deg)"
+        return plot_all(self.signatures, Path(out_dir), title=title)
+
+
+def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", **options) -> dict[str, PathSet]:
+    """Path sets per link from the named backend."""
+    return backend_function(backend)(motion, radar, **options)
+
+
+def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool = False,
+                  progress=None, timing: dict | None = None, synthesis: str = "auto",
+                  oversample: int = 8, iq_transform=None) -> dict[str, LinkResult]:
+    """Synthesise raw IQ and compute signatures for every link's path set.
+
+    `progress` is an optional callable receiving the number of chirps done after each chunk;
+    `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.iter_synthesis`);
+    `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (receiver noise, clutter),
+    and the kept IQ is the transformed one.
+    """
+    timing = {} if timing is None else timing
+    out = {}
+    wf, dsp = radar.waveform, radar.dsp
+    for name, ps in paths.items():
+        t0 = time.perf_counter()
+        t_parts, iq_parts = [], []
+        for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
+            t_parts.append(t)
+            iq_parts.append(iq)
+            if progress is not None:
+                progress(t.size)
+        chirp_t = np.concatenate(t_parts) if t_parts else np.zeros(0)
+        iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+        if iq_transform is not None:
+            iq = iq_transform(name, iq)
+        t1 = time.perf_counter()
+        sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0)
+        t2 = time.perf_counter()
+        timing["synthesis"] = timing.get("synthesis", 0.0) + t1 - t0
+        timing["dsp"] = timing.get("dsp", 0.0) + t2 - t1
+        out[name] = LinkResult(signature=sig, chirp_times=chirp_t, iq=iq if keep_iq else None)
+    return out
+
+
+def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
+             keep_iq: bool = False, progress=None, synthesis: str = "auto", iq_transform=None,
+             **backend_options) -> SimulationResult:
+    """Run `motion` through a scattering backend and the shared synthesiser/DSP for every link of `radar`.
+
+    Args:
+        motion: the pose sequence (`rtchannel.Motion`, e.g. `Motion.procedural("walk")`).
+        radar: waveform, DSP settings and links (`rtchannel.Radar`); default the seed's 2x2 system.
+        backend: "points" (the seed's 21 scatterers, free space), "facets" (every triangle of the skinned
+            mesh, ray-traced visibility, wall multipath) or "sionna" (Sionna RT, the reference).
+        scene: mesh backends only: a `rtchannel.Scene`, "room" (default), "free_space" or a Mitsuba XML
+            path. The points backend has no scene (a warning is issued if one other than free space is given).
+        keep_iq: keep the raw IQ [chirps, samples] of every link (memory: 8 bytes per sample).
+        progress: optional callable receiving the number of chirps done after each chunk.
+        synthesis: "auto", "exact" or "grid" (see `processing.synthesis.iter_synthesis`).
+        iq_transform: optional `f(link name, iq) -> iq` applied before the DSP (e.g. signal augmentation).
+        **backend_options: the backend's options (e.g. `lod="5k"`, `walls=False` for facets).
+
+    Returns:
+        `SimulationResult` with `.signatures`, `.iq`, `.timing`, `.config`, `.save(path)`, `.plot(dir)`.
+    """
+    radar = RadarConfig() if radar is None else radar
+    if scene is not None:
+        if backend in MESH_BACKENDS:
+            backend_options["scene"] = scene
+        elif str(scene) != "free_space":
+            warnings.warn(f"the {backend} backend is a free-space model: scene '{scene}' is not used",
+                          stacklevel=2)
+    timing: dict[str, float] = {}
+    t0 = time.perf_counter()
+    paths = backend_paths(motion, radar, backend, **backend_options)
+    timing["backend"] = time.perf_counter() - t0
+    links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing, synthesis=synthesis,
+                          iq_transform=iq_transform)
+    options = {k: (v.describe() if hasattr(v, "describe") else v) for k, v in backend_options.items()
+               if k not in ("timing", "stats")}
+    config = {"activity": motion.activity, "motion": motion.params, "radar": radar.model_dump(mode="json"),
+              "backend": backend, "backend_options": options, "synthesis": synthesis}
+    return SimulationResult(links=links, timing=timing, config=config)
