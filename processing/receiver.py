@@ -1,0 +1,250 @@
+"""Absolute receiver noise from the radar equation, transmit power and the receiver chain.
+
+Units. The synthesiser's IQ is in units of the transmit power: with |a|^2 = P_r / P_t per path (antenna
+gains included, see `processing.antenna`), a tone of IQ amplitude A means P_r = |A|^2 P_t. `scale_to_receiver`
+multiplies by sqrt(P_t [W] * G_chain); afterwards |iq|^2 is a power in watts: the received power at the
+antenna port times the chain gain (`chain_gain_db`, antenna port -> ADC output; 0 dB, the default, keeps
+the IQ referred to the receiver input). Volts across a reference resistance R are iq * sqrt(R).
+
+Thermal noise. Referred to the receiver input, the noise power spectral density is
+N0 = k (T_a + (F - 1) T0), T0 = 290 K, T_a the antenna (scene) temperature, F the noise factor
+(10^(NF/10), defined at T0); for T_a = T0 this is the familiar k T0 F. Quadrature (complex) sampling at
+rate fs sees a complex baseband band of width fs ([-fs/2, fs/2): unlike real sampling, a complex signal
+needs no mirror half, so the Nyquist band of complex sampling is fs, not fs/2), and the anti-alias
+filter passes exactly that band in this model. The complex envelope carries the same noise density N0
+(its power N0 B equals that of the real band-pass noise of bandwidth B), so each complex sample has
+
+    P_n = k (T_a + (F - 1) T0) fs G_chain     [W]   (`noise_power_per_sample`),
+
+white from sample to sample, circular complex Gaussian (P_n / 2 in I and in Q). A real kit's filter may
+be narrower than fs; the noise then is coloured but the per-bin level inside the pass band is the same.
+
+After the FFTs (`processing.dsp` normalisations): the range FFT divides by sum(w) of the fast-time taper w,
+so a range bin holds noise P_n sum(w^2) / sum(w)^2 (= P_n / N for the rectangular window) while an on-bin
+tone keeps its power |A|^2: an SNR gain of sum(w)^2 / sum(w^2) (= N). The Doppler FFT uses a taper u of
+unit energy (sum(u^2) = 1): a Doppler bin keeps the range bin's noise and a constant-velocity on-bin
+target gains sum(u)^2 (= W chirps for the rectangular window). Both together: SNR x N W (+39.1 dB at
+N = 128, W = 64); see `range_bin_noise` and `processing_gain_db`.
+
+Transmitter leakage (optional, off by default): a static return at range `range_m` with power
+`coupling_db` relative to P_t, whose phase jitters from chirp to chirp by the residual (after dechirping)
+phase noise of the oscillator: white phase phi_c with variance L * PRF, so each slow-time sideband has
+density L [dBc/Hz] relative to the leakage carrier. Static-return removal cancels the carrier; the jitter
+leaves a floor of L * PRF / W relative to the leakage (per Doppler bin) in the leakage's range bin and its
+range-FFT side lobes. `residual_phase_noise_dbc_hz` is the level after range correlation (oscillator phase
+noise times |2 sin(pi f tau)|^2), a documented free parameter, not a data-sheet value.
+
+Randomness. `receive` / `receiver_noise` draw noise keyed by absolute chirp index (blocks of
+NOISE_BLOCK_CHIRPS chirps, each from its own SeedSequence(seed, spawn_key=(block, stream))), so any chunking,
+in any order, gives the same bytes as one call. `add_receiver_noise(iq, cfg, fs, rng)` is the simple
+sequential form: chunks fed in order to one dedicated Generator equal one call on the whole array.
+"""
+from __future__ import annotations
+
+import math
+import operator
+from collections.abc import Sequence
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+from scipy.signal import get_window
+
+from processing.antenna import AntennaPattern, GaussianBeam, YagiBeam
+from processing.waveform import C0, Waveform
+
+K_BOLTZMANN = 1.380649e-23  # J/K (exact, SI 2019)
+T0_K = 290.0  # reference temperature of the noise figure (IEEE)
+NOISE_BLOCK_CHIRPS = 256  # part of the reproducibility contract: changing it changes every noise realisation
+
+
+class LeakageConfig(BaseModel):
+    """Transmitter-to-receiver leakage with residual phase noise (see the module docstring)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    coupling_db: float = Field(-40.0, ge=-150.0, le=0.0, description="leakage power / transmit power [dB]; "
+                               "<= 0 (passive coupling); horn pairs a few cm apart: about -30 to -60 dB")
+    range_m: float = Field(0.05, ge=0.0, le=100.0, description="range equivalent c tau / 2 of the leakage "
+                           "path [m] (antenna spacing plus cables)")
+    residual_phase_noise_dbc_hz: float = Field(-110.0, ge=-200.0, le=-40.0, description="slow-time sideband "
+                                               "density after dechirping [dBc/Hz]; > -40 would be no radar")
+
+
+class ReceiverConfig(BaseModel):
+    """Transmit power and receiver noise of one radar. Values SI except the logarithmic ones."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    transmit_power_dbm: float = Field(ge=-40.0, le=40.0, description="power into the transmit antenna "
+                                      "[dBm]; -40..40 (below: no usable radar; above 10 W: not a room sensor)")
+    noise_figure_db: float = Field(ge=0.0, le=30.0, description="receiver noise figure at T0 = 290 K [dB]; "
+                                   ">= 0 because F >= 1; > 30 dB is a broken receiver")
+    antenna_temperature_k: float = Field(290.0, gt=0.0, le=5000.0, description="noise temperature the "
+                                         "antenna sees [K]; a room is ~290 K")
+    chain_gain_db: float = Field(0.0, ge=-60.0, le=150.0, description="power gain antenna port -> ADC output "
+                                 "[dB]; 0 keeps the IQ referred to the receiver input")
+    leakage: LeakageConfig | None = Field(None, description="optional Tx->Rx leakage with phase noise")
+
+
+class RadarHardware(BaseModel):
+    """A radar kit: its receiver and the pattern shared by its transmit and receive antennas."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    receiver: ReceiverConfig
+    antenna: AntennaPattern
+    source: str = ""
+
+
+def transmit_power_w(cfg: ReceiverConfig) -> float:
+    """Transmit power P_t [W]."""
+    return 10.0 ** ((cfg.transmit_power_dbm - 30.0) / 10.0)
+
+
+def noise_psd_w_per_hz(cfg: ReceiverConfig) -> float:
+    """Input-referred noise density N0 = k (T_a + (F - 1) T0) [W/Hz]."""
+    f = 10.0 ** (cfg.noise_figure_db / 10.0)
+    return K_BOLTZMANN * (cfg.antenna_temperature_k + (f - 1.0) * T0_K)
+
+
+def noise_power_per_sample(cfg: ReceiverConfig, fs: float) -> float:
+    """Noise power of one complex ADC sample, N0 fs G_chain [W] (the scaled IQ's unit), fs in Hz."""
+    if not (fs > 0 and math.isfinite(fs)):
+        raise ValueError(f"sampling rate fs must be a positive finite number of Hz, got {fs!r}")
+    return noise_psd_w_per_hz(cfg) * fs * 10.0 ** (cfg.chain_gain_db / 10.0)
+
+
+def scale_to_receiver(iq: np.ndarray, cfg: ReceiverConfig) -> np.ndarray:
+    """IQ in units of P_t (synthesiser output) -> sqrt(W) at the ADC: times sqrt(P_t G_chain). complex64."""
+    s = math.sqrt(transmit_power_w(cfg) * 10.0 ** (cfg.chain_gain_db / 10.0))
+    return (np.asarray(iq) * s).astype(np.complex64)
+
+
+def _complex_gaussian(rng: np.random.Generator, shape: tuple, power: float) -> np.ndarray:
+    z = rng.standard_normal(tuple(shape) + (2,), dtype=np.float32).view(np.complex64)[..., 0]
+    return z * np.float32(math.sqrt(power / 2.0))
+
+
+def add_receiver_noise(iq: np.ndarray, cfg: ReceiverConfig, fs: float, rng: np.random.Generator) -> np.ndarray:
+    """Scaled IQ [..., N] (sqrt(W)) plus thermal noise of `noise_power_per_sample` per sample, complex64.
+
+    Sequential form: feeding consecutive chunks to the same Generator (used for nothing else in between)
+    gives the same bytes as one call on the whole array. For random access use `receive`.
+    """
+    iq = np.asarray(iq)
+    return (iq + _complex_gaussian(rng, iq.shape, noise_power_per_sample(cfg, fs))).astype(np.complex64)
+
+
+def _block_rng(seed, block: int, stream: int) -> np.random.Generator:
+    try:
+        entropy = [operator.index(s) for s in (seed if isinstance(seed, (Sequence, np.ndarray)) else [seed])]
+    except TypeError:
+        entropy = []
+    if not entropy or min(entropy) < 0:
+        raise ValueError(f"seed must be a non-negative integer or a non-empty sequence of them, got {seed!r}")
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy, spawn_key=(block, stream))))
+
+
+def _keyed(seed, stream: int, first_chirp: int, n_chirps: int, draw) -> np.ndarray:
+    """Rows first_chirp .. first_chirp + n_chirps of a per-chirp random array built block by block."""
+    if first_chirp < 0 or n_chirps < 0:
+        raise ValueError("first_chirp and n_chirps must be >= 0")
+    if n_chirps == 0:
+        _block_rng(seed, 0, stream)  # still reject a bad seed
+        return draw(np.random.default_rng(0), 0)
+    b0, b1 = first_chirp // NOISE_BLOCK_CHIRPS, (first_chirp + n_chirps - 1) // NOISE_BLOCK_CHIRPS
+    rows = np.concatenate([draw(_block_rng(seed, b, stream), NOISE_BLOCK_CHIRPS) for b in range(b0, b1 + 1)])
+    s = first_chirp - b0 * NOISE_BLOCK_CHIRPS
+    return rows[s:s + n_chirps]
+
+
+def receiver_noise(cfg: ReceiverConfig, fs: float, n_samples: int, seed, first_chirp: int, n_chirps: int
+                   ) -> np.ndarray:
+    """Thermal noise [n_chirps, n_samples] (complex64, sqrt(W)) of chirps first_chirp.. of one link.
+
+    `seed`: an int or a sequence of ints, e.g. (simulation seed, link index); the same seed and chirp
+    index always give the same noise, whatever the chunking."""
+    p = noise_power_per_sample(cfg, fs)
+    return _keyed(seed, 0, first_chirp, n_chirps, lambda g, k: _complex_gaussian(g, (k, n_samples), p))
+
+
+def leakage_iq(cfg: ReceiverConfig, wf: Waveform, seed, first_chirp: int, n_chirps: int) -> np.ndarray:
+    """The leakage return [n_chirps, N] (complex64, sqrt(W) at the ADC) of chirps first_chirp..; zeros if
+    `cfg.leakage` is None. Its phase jitter is keyed by chirp index like `receiver_noise`."""
+    n = wf.samples_per_chirp
+    if cfg.leakage is None:
+        return np.zeros((n_chirps, n), np.complex64)
+    lk = cfg.leakage
+    tau = 2.0 * lk.range_m / C0
+    amp = math.sqrt(transmit_power_w(cfg) * 10.0 ** ((lk.coupling_db + cfg.chain_gain_db) / 10.0))
+    cycles = wf.slope * tau * np.arange(n) / wf.fs + math.fmod(wf.start_hz * tau, 1.0)
+    tone = amp * np.exp(1j * 2 * np.pi * cycles)
+    sigma = math.sqrt(10.0 ** (lk.residual_phase_noise_dbc_hz / 10.0) / wf.pri_s)
+    phi = _keyed(seed, 1, first_chirp, n_chirps, lambda g, k: sigma * g.standard_normal(k))
+    return (np.exp(1j * phi)[:, None] * tone[None, :]).astype(np.complex64)
+
+
+def receive(iq: np.ndarray, cfg: ReceiverConfig, wf: Waveform, seed, first_chirp: int = 0) -> np.ndarray:
+    """What the ADC records for synthesiser IQ [C, N] (units of P_t) of chirps first_chirp..first_chirp+C-1:
+    scaled to sqrt(W), plus leakage (if configured) plus thermal noise. complex64; chunk-independent."""
+    iq = np.asarray(iq)
+    if iq.ndim != 2 or iq.shape[1] != wf.samples_per_chirp:
+        raise ValueError(f"IQ must be [chirps, {wf.samples_per_chirp}], got {iq.shape}")
+    c = iq.shape[0]
+    out = scale_to_receiver(iq, cfg)
+    if cfg.leakage is not None:
+        out += leakage_iq(cfg, wf, seed, first_chirp, c)
+    out += receiver_noise(cfg, wf.fs, wf.samples_per_chirp, seed, first_chirp, c)
+    return out
+
+
+def _taper(name: str, n: int) -> np.ndarray:
+    return get_window(name, n, fftbins=True).astype(np.float64)
+
+
+def range_bin_noise(p_sample: float, n_samples: int, range_window: str = "boxcar") -> float:
+    """Noise power [W] per range bin, P_n sum(w^2) / sum(w)^2, for white noise of `p_sample` per complex
+    sample under `processing.dsp.range_profiles`' normalisation (divide by sum(w)). A range-Doppler bin
+    holds the same level: the DSP's Doppler taper has unit energy, which leaves white noise unchanged."""
+    w = _taper(range_window, n_samples)
+    return p_sample * float((w ** 2).sum() / w.sum() ** 2)
+
+
+def processing_gain_db(n_samples: int, n_chirps: int, range_window: str = "boxcar",
+                       doppler_window: str = "boxcar") -> float:
+    """SNR gain [dB] of the range and Doppler FFTs for an on-bin, constant-velocity point target."""
+    w, u = _taper(range_window, n_samples), _taper(doppler_window, n_chirps)
+    return 10 * math.log10(w.sum() ** 2 / (w ** 2).sum() * u.sum() ** 2 / (u ** 2).sum())
+
+
+def received_power_w(cfg: ReceiverConfig, rcs_m2: float, r_tx_m: float, r_rx_m: float, wavelength_m: float,
+                     gain_tx_dbi: float = 0.0, gain_rx_dbi: float = 0.0) -> float:
+    """Radar equation at the ADC: P_t G_tx G_rx lambda^2 sigma / ((4 pi)^3 R_tx^2 R_rx^2) x G_chain [W]."""
+    g = 10.0 ** ((gain_tx_dbi + gain_rx_dbi + cfg.chain_gain_db) / 10.0)
+    return transmit_power_w(cfg) * g * wavelength_m ** 2 * rcs_m2 / ((4 * np.pi) ** 3 * r_tx_m ** 2 * r_rx_m ** 2)
+
+
+def point_target_snr_db(cfg: ReceiverConfig, fs: float, rcs_m2: float, range_m: float, wavelength_m: float,
+                        gain_dbi: float = 0.0) -> float:
+    """SNR [dB] per complex sample of a monostatic point target on boresight of antennas of `gain_dbi`."""
+    p = received_power_w(cfg, rcs_m2, range_m, range_m, wavelength_m, gain_dbi, gain_dbi)
+    return 10 * math.log10(p / noise_power_per_sample(cfg, fs))
+
+
+# Presets. No Ancortek data sheet was found in the sources searched, so each value says where it comes from
+# (recalled vendor/user figures are marked unverified); replace them when a data sheet is at hand.
+ANCORTEK_2400T2R4 = RadarHardware(
+    receiver=ReceiverConfig(transmit_power_dbm=19.0, noise_figure_db=12.0),
+    antenna=GaussianBeam(hpbw_az_deg=30.0, hpbw_el_deg=30.0, floor_db=30.0, look_at=(0.0, 0.0, 1.1)),
+    source="Ancortek SDR-KIT 2400T2R4 (24 GHz, 2 Tx / 4 Rx, horns). Not a data sheet: P_t 19 dBm recalled "
+           "from the vendor's kit pages (unverified); NF 12 dB typical of 24 GHz SiGe transceivers; 30 deg "
+           "horns as in the project's issue, gain = Gaussian-beam directivity 16.0 dBi, -30 dB floor; the "
+           "seed's radars (3, 0, 1.1) and (0, -3, 1.1) look horizontally at the room centre (0, 0, 1.1).")
+ANCORTEK_580AD = RadarHardware(
+    receiver=ReceiverConfig(transmit_power_dbm=18.0, noise_figure_db=8.0),
+    antenna=YagiBeam(hpbw_az_deg=24.0, hpbw_el_deg=24.0, peak_gain_dbi=17.0, front_to_back_db=20.0,
+                     floor_db=25.0, look_at=(0.0, 0.0, 1.1)),
+    source="Ancortek SDR-KIT 580AD (5.8 GHz, Yagi antennas; Glasgow dataset). Not a data sheet: P_t about "
+           "18 dBm and Yagi gain about 17 dBi as quoted (from memory, unverified) in the Glasgow group's "
+           "papers; HPBW 24 deg makes the model's directivity 17 dBi; F/B 20 dB, floor -25 dB and NF 8 dB "
+           "typical values; look_at is a placeholder (horizontal boresight at 1.1 m).")
