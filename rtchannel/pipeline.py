@@ -83,21 +83,32 @@ def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", *
 
 def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool = False,
                   progress=None, timing: dict | None = None, synthesis: str = "auto",
-                  oversample: int = 8, iq_transform=None) -> dict[str, LinkResult]:
+                  oversample: int = 8, iq_transform=None, noise_seed: int = 0) -> dict[str, LinkResult]:
     """Synthesise raw IQ and compute signatures for every link's path set.
 
+    With `radar.receiver` set, the IQ is what the ADC records (`processing.receiver.receive`): scaled to
+    sqrt(W) by the transmit power and chain gain, plus the receiver's thermal noise (and leakage, if
+    configured), seeded by (`noise_seed`, link index) and keyed by chirp index, so chunking never
+    changes it. Without a receiver the IQ stays in units of the transmit power (noiseless).
     `progress` is an optional callable receiving the number of chirps done after each chunk;
     `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.iter_synthesis`);
-    `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (receiver noise, clutter),
+    `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (signal-layer augmentation),
     and the kept IQ is the transformed one.
     """
+    from processing.receiver import receive
+
     timing = {} if timing is None else timing
     out = {}
     wf, dsp = radar.waveform, radar.dsp
+    index = {link.name: i for i, link in enumerate(radar.links)}
     for name, ps in paths.items():
         t0 = time.perf_counter()
         t_parts, iq_parts = [], []
+        done = 0
         for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
+            if radar.receiver is not None:
+                iq = receive(iq, radar.receiver, wf, seed=(int(noise_seed), index.get(name, 0)), first_chirp=done)
+            done += t.size
             t_parts.append(t)
             iq_parts.append(iq)
             if progress is not None:
@@ -117,7 +128,7 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
 
 def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
              keep_iq: bool = False, progress=None, synthesis: str = "auto", iq_transform=None,
-             **backend_options) -> SimulationResult:
+             noise_seed: int | None = None, **backend_options) -> SimulationResult:
     """Run `motion` through a scattering backend and the shared synthesiser/DSP for every link of `radar`.
 
     Args:
@@ -131,6 +142,7 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
         progress: optional callable receiving the number of chirps done after each chunk.
         synthesis: "auto", "exact" or "grid" (see `processing.synthesis.iter_synthesis`).
         iq_transform: optional `f(link name, iq) -> iq` applied before the DSP (e.g. signal augmentation).
+        noise_seed: seed of the receiver noise (default: the motion's seed, else 0).
         **backend_options: the backend's options (e.g. `lod="5k"`, `walls=False` for facets).
 
     Returns:
@@ -147,10 +159,13 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
     t0 = time.perf_counter()
     paths = backend_paths(motion, radar, backend, **backend_options)
     timing["backend"] = time.perf_counter() - t0
+    if noise_seed is None:
+        noise_seed = int(motion.params.get("seed", 0) or 0)
     links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing, synthesis=synthesis,
-                          iq_transform=iq_transform)
+                          iq_transform=iq_transform, noise_seed=noise_seed)
     options = {k: (v.describe() if hasattr(v, "describe") else v) for k, v in backend_options.items()
                if k not in ("timing", "stats")}
     config = {"activity": motion.activity, "motion": motion.params, "radar": radar.model_dump(mode="json"),
-              "backend": backend, "backend_options": options, "synthesis": synthesis}
+              "backend": backend, "backend_options": options, "synthesis": synthesis, "noise_seed": noise_seed,
+              "iq_unit": "sqrt(W) at the ADC" if radar.receiver is not None else "sqrt(transmit power)"}
     return SimulationResult(links=links, timing=timing, config=config)

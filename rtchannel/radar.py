@@ -1,9 +1,16 @@
-"""Radar description: waveform plus antenna positions per link, and the seed's 18 directions.
+"""Radar description: waveform, DSP, receiver, antennas and positions per link; the seed's 18 directions.
 
 A *link* is one transmitter/receiver pair: monostatic (tx = rx, the seed's radars), bistatic (tx and
 rx apart) or, by listing several links that share a transmitter, multistatic. Any number of links.
 Positions are in the project frame (z up, metres). The seed's y-up positions (x, y, z) are (x, -z, y)
 here: Radar 1 at (3, 0, 1.1) m and Radar 2 at (0, -3, 1.1) m.
+
+Antennas (`processing.antenna`): every link's transmitter and receiver has a pattern, the link's own
+(`tx_antenna`, `rx_antenna`) or the radar's `antenna`. The default is the seed's kit (Ancortek SDR-KIT
+2400T2R4, `processing.receiver.ANCORTEK_2400T2R4`): 30-degree horns looking horizontally at the room
+centre (0, 0, 1.1) m, and its receiver (transmit power, noise figure), so signatures carry the kit's
+absolute thermal noise. `receiver=None` gives noiseless IQ; `antenna=Isotropic()` the unit-gain
+antennas of the backends' native scale.
 """
 from __future__ import annotations
 
@@ -14,7 +21,9 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from processing.antenna import AntennaPattern
 from processing.dsp import DSPConfig
+from processing.receiver import ANCORTEK_2400T2R4, ReceiverConfig
 from processing.waveform import Waveform
 
 MONOSTATIC_TOLERANCE_M = 0.1  # tx and rx closer than this share one position (co-located horns)
@@ -28,6 +37,8 @@ class Link(BaseModel):
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$")
     tx: tuple[float, float, float]
     rx: tuple[float, float, float] | None = Field(None, description="receiver; default = tx (monostatic)")
+    tx_antenna: AntennaPattern | None = Field(None, description="transmit antenna; default: the radar's")
+    rx_antenna: AntennaPattern | None = Field(None, description="receive antenna; default: the radar's")
 
     @field_validator("tx", "rx")
     @classmethod
@@ -61,6 +72,10 @@ class RadarConfig(BaseModel):
     waveform: Waveform = Field(default_factory=Waveform)
     dsp: DSPConfig = Field(default_factory=DSPConfig)
     links: list[Link] = Field(default_factory=_seed_links, min_length=1)
+    antenna: AntennaPattern = Field(default_factory=lambda: ANCORTEK_2400T2R4.antenna,
+                                    description="antenna pattern of links without their own")
+    receiver: ReceiverConfig | None = Field(default_factory=lambda: ANCORTEK_2400T2R4.receiver,
+                                            description="transmit power and receiver noise; None: noiseless")
     orientation_deg: float = Field(0.0, allow_inf_nan=False, description="rotation [deg] about z applied to "
                                    "the links as given (the seed's direction angle); kept for provenance")
 
@@ -97,9 +112,27 @@ class RadarConfig(BaseModel):
         def rot(p):
             return None if p is None else tuple(float(x) for x in rz @ np.asarray(p, dtype=float))
 
-        links = [link.model_copy(update={"tx": rot(link.tx), "rx": rot(link.rx)}) for link in self.links]
-        return self.model_copy(update={"links": links,
+        def turn(ant):
+            return None if ant is None else ant.rotated_about_z(angle_deg)
+
+        links = [link.model_copy(update={"tx": rot(link.tx), "rx": rot(link.rx), "tx_antenna": turn(link.tx_antenna),
+                                         "rx_antenna": turn(link.rx_antenna)}) for link in self.links]
+        return self.model_copy(update={"links": links, "antenna": turn(self.antenna),
                                        "orientation_deg": wrap_deg(self.orientation_deg + angle_deg)})
+
+    def antennas(self, link: Link) -> tuple:
+        """(transmit, receive) antenna patterns of `link` (its own, else the radar's)."""
+        return (link.tx_antenna or self.antenna, link.rx_antenna or self.antenna)
+
+    def link_gain(self, link: Link, tx_targets: np.ndarray, rx_targets: np.ndarray | None = None) -> np.ndarray:
+        """Antenna amplitude factor sqrt(G_tx G_rx) [...] of paths leaving the transmitter towards
+        `tx_targets` [..., 3] (m) and reaching the receiver from `rx_targets` (default the same points)."""
+        from processing.antenna import link_gain
+
+        tx_ant, rx_ant = self.antennas(link)
+        if tx_ant.kind == "isotropic" and rx_ant.kind == "isotropic":
+            return np.ones(np.shape(tx_targets)[:-1])
+        return link_gain(tx_ant, link.tx_pos, rx_ant, link.rx_pos, tx_targets, rx_targets)
 
     def for_direction(self, direction: int) -> "RadarConfig":
         """The radar set rotated for the seed's direction 1..18 (Radar 1 at 20 (k - 1) degrees)."""

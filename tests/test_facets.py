@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from processing.receiver import noise_power_per_sample
 from processing.waveform import C0
 from rtchannel.body.avatar import load_avatar
 from rtchannel.backends.facets import LinkSpec, facet_paths, mesh_paths, trace_frame_indices
@@ -131,9 +132,16 @@ def test_body_hidden_behind_a_wall_gives_zero_signal():
     radar = _radar(Link(name="out", tx=(6.0, 0.0, 1.1)))  # outside the room, behind the x = 4 m wall
     ps = facet_paths(m, radar, scene="room", lod=LOD, walls=True)["out"]
     assert np.all(ps.gains == 0) and ps.n_paths == 1
-    res = process_paths({"out": ps}, radar, keep_iq=True)["out"]
+    quiet = radar.model_copy(update={"receiver": None})  # noiseless receiver: nothing at all
+    res = process_paths({"out": ps}, quiet, keep_iq=True)["out"]
     assert np.all(res.iq == 0)
     assert np.all(np.isfinite(res.signature.p_vt)) and not np.any(res.signature.valid)
+    # the default receiver records its own thermal noise and nothing else: k T F fs per complex sample
+    # (234 x 128 samples: the estimate's spread is 10 log10(1 + 1/sqrt(30k)) = 0.03 dB)
+    res = process_paths({"out": ps}, radar, keep_iq=True)["out"]
+    expected = noise_power_per_sample(radar.receiver, radar.waveform.fs)
+    assert abs(10 * np.log10(np.mean(np.abs(res.iq) ** 2) / expected)) < 0.2
+    assert np.all(np.isfinite(res.signature.p_vt)) and np.all(res.signature.valid)
 
 
 def test_antenna_inside_the_body_path_is_rejected():

@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 from scipy.signal import find_peaks
 
+from processing.antenna import Isotropic, peak_gain_dbi
 from processing.waveform import C0
-from rtchannel.backends.points import point_paths
+from rtchannel.backends.points import BODY_RCS_M2, point_paths
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.pipeline import simulate
@@ -24,11 +25,17 @@ def test_point_delays_are_exact_geometry():
     assert paths["mono"].n_paths == 21
     seed = point_paths(m, radar, scale="seed")["mono"]
     assert np.allclose(np.sum(np.abs(seed.gains[0]) ** 2), 1.0)
-    # radar scale: P_r/P_t = lambda^2 sigma / ((4 pi)^3 R^4) with the head's share of the body RCS
-    r = np.linalg.norm(pos - [3, 0, 1.1], axis=1)
+    # radar scale: P_r/P_t = G^2 lambda^2 sigma / ((4 pi)^3 R^4) with the head's share of the body RCS and
+    # the default horn (Gaussian beam, 30 deg HPBW, aimed at (0, 0, 1.1)) at psi off boresight both ways
+    d = pos - [3, 0, 1.1]
+    r = np.linalg.norm(d, axis=1)
+    psi = np.arccos(-d[:, 0] / r)  # boresight is -x
+    g = 10 ** (peak_gain_dbi(radar.antenna) / 10) * np.exp(-4 * np.log(2) * (psi / np.radians(30.0)) ** 2)
     lam = radar.waveform.wavelength
-    expected = lam ** 2 * np.abs(seed.gains[0, 0]) ** 2 * 0.5 / ((4 * np.pi) ** 3 * r ** 4)
+    expected = g ** 2 * lam ** 2 * np.abs(seed.gains[0, 0]) ** 2 * BODY_RCS_M2 / ((4 * np.pi) ** 3 * r ** 4)
     np.testing.assert_allclose(np.abs(paths["mono"].gains[:, 0]) ** 2, expected, rtol=1e-12)
+    iso = point_paths(m, radar.model_copy(update={"antenna": Isotropic()}))["mono"]
+    np.testing.assert_allclose(np.abs(iso.gains[:, 0]) ** 2, expected / g ** 2, rtol=1e-12)
 
 
 @pytest.mark.parametrize("speed", [0.9, 1.3, 1.7])

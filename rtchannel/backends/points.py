@@ -4,10 +4,12 @@ Delay of scatterer l on link (tx, rx): tau_l(t) = (|C_l(t) - tx| + |C_l(t) - rx|
 bistatic radial distance is half the total path (seed Sect. IV-A); monostatic links reduce to 2 d / c0.
 
 Gain scales (`scale`):
-- "radar" (default): the common scale of all backends, the path coefficient of the radar equation with
-  isotropic unit-gain antennas, |a_l|^2 = P_r / P_t = lambda^2 sigma_l / ((4 pi)^3 R_tx^2 R_rx^2), with
-  sigma_l = g_l^2 sigma_body (the seed's area-fraction gains g_l, sum of squares 1, share the body RCS).
-- "seed": a_l = g_l, time-invariant and dimensionless, exactly the seed's model (no range loss).
+- "radar" (default): the common scale of all backends, the path coefficient of the radar equation,
+  |a_l|^2 = P_r / P_t = G_tx G_rx lambda^2 sigma_l / ((4 pi)^3 R_tx^2 R_rx^2), with sigma_l = g_l^2
+  sigma_body (the seed's area-fraction gains g_l, sum of squares 1, share the body RCS) and the antenna
+  gains G toward the scatterer (`RadarConfig.link_gain`; 1 for isotropic antennas).
+- "seed": a_l = g_l, time-invariant and dimensionless, exactly the seed's model (no range loss, no
+  antenna patterns).
 """
 from __future__ import annotations
 
@@ -75,6 +77,7 @@ def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = N
         gain = np.broadcast_to(g, tau.shape).copy()
         if scale == "radar":
             gain = gain * radar_amplitude(body_rcs_m2, r_tx, r_rx, radar.waveform.wavelength)
+            gain = gain * radar.link_gain(link, traj)
         out[link.name] = PathSet(times=motion.times, delays=tau, gains=gain, ids=np.arange(traj.shape[1]),
                                  link=link.name)
     return out
