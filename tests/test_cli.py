@@ -97,3 +97,21 @@ def test_render_writes_scene_png(tmp_path):
     out = tmp_path / "scene.png"
     assert main(["render", "--activity", "sit", "--out", str(out), "--frames", "0", "60", "--lod", "2k"]) == 0
     assert out.stat().st_size > 20_000
+
+
+def test_render_cuts_away_walls_facing_the_camera():
+    from rtchannel.scene.render import _static_geometry
+
+    # camera outside the room beyond x = 4 m and y = -4 m: those two walls go, floor and two walls stay
+    kept = _static_geometry("room", 1.75, 24.125e9, np.array([10.0, -10.0, 5.0]))
+    assert len(kept) == 3
+    flat = [g for g in kept if np.ptp(g[0][:, 2]) < 1e-6]
+    assert len(flat) == 1  # the floor
+    walls = [g[0] for g in kept if np.ptp(g[0][:, 2]) > 1e-6]
+    assert sorted(round(float(np.mean(v[:, 0])), 3) for v in walls) == [-4.0, 0.0]  # x = -4 wall, y = +4 wall
+
+
+def test_compare_accepts_comma_separated_backends(tmp_path):
+    out = tmp_path / "cmp"
+    assert main(["compare", "--backends", "points,points", "--activities", "fall", "--out", str(out), "--quiet"]) == 0
+    assert (out / "table_i.csv").is_file() or any(out.iterdir())

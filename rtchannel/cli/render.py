@@ -19,6 +19,8 @@ def add_render(sub) -> None:
     p.add_argument("--frames", type=int, nargs="+", help="frame indices (default: 5 evenly spaced)")
     add_radar_args(p)
     p.add_argument("--lod", default="10k", help="avatar level of detail: full, 10k, 5k, 2k (default 10k)")
+    p.add_argument("--scene", default="room", help="static geometry to draw: room (default), free_space or a "
+                   "Mitsuba XML file (walls facing the camera are cut away)")
     p.set_defaults(func=cmd_render)
 
 
@@ -32,7 +34,11 @@ def cmd_render(args) -> int:
     if bad:
         raise UserError(f"frames {bad} outside 0..{motion.n_frames - 1}")
     antennas = [p for link in radar.links for p in {tuple(link.tx_pos), tuple(link.rx_pos)}]
-    print(f"wrote {render_scene(motion, frames, antennas, args.out, lod=args.lod)}")
+    from rtchannel.scene.spec import Scene
+
+    scene = Scene(args.scene)
+    scene.xml_path()  # a missing scene is a one-line user error before any rendering
+    print(f"wrote {render_scene(motion, frames, antennas, args.out, lod=args.lod, scene=scene, frequency_hz=radar.waveform.carrier_hz)}")
     if args.strip:
         print(f"wrote {render_strip(motion, args.strip, radar_positions=antennas)}")
     return 0

@@ -2,6 +2,9 @@
 
 For inspection, not for simulation: an RGB path tracer (variant ``llvm_ad_rgb``), a checkered 1 m
 floor grid, soft sky light plus a sun, a fixed camera chosen from the scene's extent (or given).
+`render_scene` can add the static geometry the ray tracer uses (walls, floor, furniture of a `Scene`):
+walls that stand between the camera and the room are left out (an architectural cut-away), so the
+body stays visible.
 """
 from __future__ import annotations
 
@@ -50,7 +53,24 @@ def default_camera(points: np.ndarray, fov_deg: float = 40.0, aspect: float = 4 
     return target + dist * direction, target
 
 
-def _scene(mi, bodies, radar_positions, camera, size, spp, floor_extent):
+def _static_geometry(scene, height: float, frequency_hz: float, camera_origin) -> list:
+    """(vertices, faces, colour) of the scene's static geometry as the ray tracer loads it, minus the walls
+    the camera looks through from outside the room."""
+    from rtchannel.scene.rt_scene import get_scene
+
+    rt = get_scene(scene, "2k", height, frequency_hz)
+    hidden = {w.name for w in rt.walls
+              if "#" not in w.name and float((np.asarray(camera_origin) - w.point) @ w.normal) < 0}
+    shapes = []
+    for k, (name, v, f) in enumerate(rt.static_meshes):
+        if name in hidden:
+            continue
+        flat = np.ptp(v[:, 2]) < 1e-6  # floors and horizontal slabs in grey, the rest sand-coloured
+        shapes.append((v, f, (0.55, 0.55, 0.55) if flat else (0.78, 0.70, 0.55)))
+    return shapes
+
+
+def _scene(mi, bodies, radar_positions, camera, size, spp, floor_extent, static=()):
     (ox, oy, oz), tgt = camera
     c = np.asarray(floor_extent[0])
     half = float(floor_extent[1])
@@ -75,6 +95,10 @@ def _scene(mi, bodies, radar_positions, camera, size, spp, floor_extent):
                 "to_uv": mi.ScalarTransform4f().scale([half, half, 1.0])}},
         },
     }
+    if static:
+        del scene["floor"]  # the scene's own floor replaces the checkered one
+    for k, shape in enumerate(static):
+        scene[f"static{k}"] = shape
     for k, body in enumerate(bodies):
         scene[f"body{k}"] = body
     for k, p in enumerate(np.atleast_2d(radar_positions) if len(radar_positions) else []):
@@ -93,7 +117,7 @@ def _floor(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def render_scene(motion: Motion, frames, radar_positions, out_png, lod: str = "10k", *,
-                 size=(960, 720), spp: int = 32, camera=None) -> Path:
+                 size=(960, 720), spp: int = 32, camera=None, scene=None, frequency_hz: float = 24.125e9) -> Path:
     """Render the skinned body at several frames (one colour each) with radars as red spheres on masts.
 
     Args:
@@ -104,19 +128,25 @@ def render_scene(motion: Motion, frames, radar_positions, out_png, lod: str = "1
         lod: avatar level of detail.
         size: image (width, height) in pixels; spp: samples per pixel.
         camera: optional (origin, target) in metres; default sees bodies and radars from the front-left.
+        scene: optional `rtchannel.Scene` (or "room", a Mitsuba XML path): draw its static geometry as the
+            ray tracer loads it (walls facing the camera from outside are cut away); None: a floor grid.
+        frequency_hz: carrier at which the scene's materials are evaluated (geometry only matters here).
 
     Returns:
         The path written.
     """
-    mi = _mi()
     av = load_avatar(lod)
     frames = np.atleast_1d(np.asarray(frames, dtype=int))
     verts = skin_vertices(av, motion, frames)
     radars = np.asarray(radar_positions, float).reshape(-1, 3)
     pts = np.concatenate([verts.reshape(-1, 3), radars, motion.positions[:, 0]])
     camera = camera or default_camera(pts, aspect=size[0] / size[1])
+    # the ray tracer's own scene loads in its Mitsuba variant: take its geometry before switching to RGB
+    geometry = [] if scene is None else _static_geometry(scene, motion.rig.height, frequency_hz, camera[0])
+    mi = _mi()
+    static = [_mesh(mi, f"static{k}", v, f, colour) for k, (v, f, colour) in enumerate(geometry)]
     bodies = [_mesh(mi, f"body{k}", v, av.faces, _PALETTE[k % len(_PALETTE)]) for k, v in enumerate(verts)]
-    scene = _scene(mi, bodies, radars, camera, size, spp, _floor(pts))
+    scene = _scene(mi, bodies, radars, camera, size, spp, _floor(pts), static)
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)
     mi.util.write_bitmap(str(out), mi.render(scene), write_async=False)
