@@ -110,7 +110,7 @@ def run_item(item: WorkItem) -> dict:
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = simulate(motion, radar, backend=item.backend, keep_iq=item.keep_iq,
+        result = simulate(motion, radar, backend=item.backend, keep_iq=item.keep_iq, noise_seed=item.seed,
                           iq_transform=signal_layer_on_iq if signal_layer else None, **options)
     for name, lr in result.links.items():
         sig, iq = lr.signature, lr.iq
