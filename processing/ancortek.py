@@ -170,10 +170,14 @@ def recording_samples(paths, links, dsp=None, n_channels: int = 1, conjugate: bo
     One file per sample when it holds one interleaved channel per link (`n_channels == len(links)`, channel
     i -> links[i]); otherwise one single-channel file per link, paired by name: ``walk01_radar1.dat`` and
     ``walk01_radar2.dat`` form sample ``walk01``. A single-link model takes each file's first channel.
+
+    `dsp` is the `DSPConfig` (or its JSON dict, as stored in dataset entries and classifier checkpoints)
+    that the simulated data being compared with went through; default `DSPConfig()`. Each recording's own
+    header gives the waveform, so the same DSP settings give the same physical axes.
     """
     from processing.dsp import DSPConfig, signatures
 
-    dsp = dsp or DSPConfig()
+    dsp = DSPConfig.model_validate(dsp) if isinstance(dsp, dict) else (dsp or DSPConfig())
     links = list(links)
 
     def sig_dict(iq, wf):

@@ -1,48 +1,52 @@
-"""Radar DSP: range FFT, static-return removal, micro-Doppler signature, p(v,t), mean velocity, range
-distribution (seed eqs. 5-10).
+"""Radar DSP: range profiles, slow-time clutter removal, micro-Doppler p(v,t), mean velocity, range
+distribution and range-Doppler map (seed eqs. 5-10).
 
-Sign convention: positive radial velocity means the scatterer approaches the radar (its range, half
-the total path for bistatic links, decreases), i.e. a positive Doppler shift, as in the seed's figures.
+Two stages. The fast-time stage (`processing.fast_time.project`) turns raw IQ [C, N] into range profiles
+of the used bins and the coherent range-sum slow-time signal; the slow-time stage
+(`signatures_from_projection`) does everything else: MTI clutter filter (`processing.mti`), STFT over
+`window_chirps` chirps every `hop_chirps`, p(v,t), eq.-8 mean velocity, range distribution, range-Doppler
+map. `signatures(iq, ...)` is exactly the two in a row; a synthesiser may build the `Projection` itself.
 
-Empty windows: a time bin whose total power is zero (or below `empty_floor` times the strongest bin of
-the recording, i.e. numerically no signal) gets p(v,t) = 0 for every v and mean velocity 0; its range
-distribution is likewise 0. Nothing is ever NaN. `Signature.valid` marks the bins that had signal.
+Sign convention: positive radial velocity means the scatterer approaches the radar (its range, half the
+total path for bistatic links, decreases), i.e. a positive Doppler shift, as in the seed's figures. The
+IQ phase exp(+j 2 pi f tau) of an approaching target falls, so its slow-time frequency f_D is negative:
+v = -f_D c / (2 f_ref).
+
+Velocity axes (`Signature.velocity`, `Signature.range_doppler_velocity`): ascending, v_k = k dv for
+k = -nfft/2 .. nfft/2 - 1 with dv = c / (2 f_ref nfft PRI), i.e. [-v_max, v_max) with
+v_max = c / (4 f_ref PRI) = lambda_ref / (4 PRI). Index 0 holds the Nyquist bin (slow-time frequency
++-PRF/2, ambiguous between -v_max and +v_max) and is labelled -v_max; the last bin is v_max - dv. (With an
+odd FFT length there is no Nyquist bin and the axis is symmetric.) f_ref, the carrier the Doppler refers
+to, is stored as `Signature.carrier_hz`, and `Signature.v_max` is v_max above. For per-range-bin
+processing (range_sum "incoherent"/"magnitude", and always for the range-Doppler map) a range bin's phase
+refers to mid-chirp, so f_ref = `Waveform.carrier_hz` and v_max = `Waveform.v_max` exactly. The coherent
+range sum's phase refers to where its fast-time weights sit (`processing.fast_time.coherent_weights`),
+so its f_ref is that instantaneous frequency, 0.4-0.5 % below the centre at the seed's radar: labelling it
+with the centre frequency would scale every velocity by that much. With a velocity crop the axes keep
+only |v| <= `velocity_crop_mps`.
+
+Empty windows: a time bin whose total power is zero or below `empty_floor` times the largest power the
+recording had before clutter removal (i.e. numerically nothing left, such as the rounding residue of a
+removed static scene) gets p(v,t) = 0 for every v and mean velocity 0; its range distribution is likewise
+0. Nothing is ever NaN. `Signature.valid` marks the bins that had signal.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from pydantic import BaseModel, ConfigDict, Field
 from scipy.signal import get_window
 
+from processing.dsp_config import DEFAULT_MTI_CUTOFF_MPS, GLASGOW_DSP, DSPConfig
+from processing.fast_time import Projection, doppler_band, project
+from processing.mti import mti_filter
 from processing.waveform import C0, Waveform
 
+__all__ = ["DEFAULT_MTI_CUTOFF_MPS", "DSPConfig", "GLASGOW_DSP", "Projection", "Signature", "mean_velocity",
+           "project", "signatures", "signatures_from_projection"]
 
-class DSPConfig(BaseModel):
-    """Signal-processing settings. Defaults follow the seed (64-chirp rectangular window, coherent sum)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    window_chirps: int = Field(64, ge=4, description="slow-time window W of the micro-Doppler STFT [chirps]")
-    hop_chirps: int = Field(32, ge=1, description="hop between successive windows [chirps]")
-    doppler_window: str = Field("boxcar", description="slow-time taper (scipy name); the seed's is boxcar")
-    range_window: str = Field("boxcar", description="fast-time taper before the range FFT")
-    range_sum: Literal["coherent", "incoherent"] = Field(
-        "coherent", description="coherent: the seed's eq. 6 (sum range bins, then FFT); incoherent: "
-        "sum of per-bin spectrograms")
-    static_removal: Literal["mean", "none"] = Field(
-        "mean", description="subtract each range bin's mean over the recording (removes static returns)")
-    min_range_m: float = Field(0.0, ge=0, description="lowest range bin used for p(v,t) [m]")
-    max_range_m: float | None = Field(None, gt=0, description="highest range used [m]; default: waveform's")
-    empty_floor: float = Field(1e-12, ge=0, description="bins below this fraction of the peak are empty")
-    mean_velocity: Literal["unwrapped", "seed"] = Field(
-        "unwrapped", description="seed: eq. 8 over the fixed axis [-v_max, v_max); unwrapped: eq. 8 over "
-        "the Doppler ambiguity interval centred on the distribution's circular mean")
-    unwrap_min_concentration: float = Field(
-        0.2, ge=0, le=1, description="circular resultant length below which 'unwrapped' falls back to 'seed'")
+_CHUNK = 1 << 22  # complex STFT values computed at once (64 MB): bounds memory for long, heavily overlapped runs
 
 
 @dataclass
@@ -51,13 +55,23 @@ class Signature:
 
     Attributes:
         time: window centre times [T] in seconds.
-        velocity: radial velocity axis [V] in m/s (ascending; positive = approaching).
-        p_vt: velocity distribution p(v, t) [V, T] (eq. 7), each column sums to 1 (or 0 if empty).
+        velocity: radial velocity axis [V] in m/s (ascending, [-v_max, v_max) or the crop; positive =
+            approaching; see the module docstring for the Nyquist bin).
+        p_vt: velocity distribution p(v, t) [V, T] (eq. 7), each column sums to 1 (or 0 if empty). For
+            range_sum "magnitude" it is (sum_r |S_r|)^2 normalised, so 10 log10(p_vt * power) is the
+            Glasgow script's 20 log10(sum_r |S_r|) (up to the taper's scale).
         mean_velocity: mean radial velocity [T] in m/s (eq. 8).
         range: range axis [R] in metres (bistatic: half the total path).
         range_distribution: p'(r, t) [R, T] (eq. 10), columns sum to 1 (or 0 if empty).
         valid: [T] bool, True where the window carried signal.
-        power: [T] total power of the window (arbitrary units, before normalisation).
+        power: [T] total power of each p(v,t) column before normalisation (arbitrary units).
+        carrier_hz: carrier f_ref [Hz] that `velocity` refers to (v = -f_D c / (2 f_ref)).
+        v_max: c / (4 f_ref PRI) [m/s], the Doppler ambiguity limit of `velocity` (0: unknown, old files).
+        range_doppler: range-Doppler power [R, V_rd, T_rd] (float32, arbitrary units: |STFT|^2 per range bin
+            with the unit-energy slow-time taper) of every `range_doppler_stride`-th window after clutter
+            removal, over `range`; None when switched off.
+        range_doppler_time: [T_rd] centre times [s] of those windows.
+        range_doppler_velocity: [V_rd] velocity axis [m/s] of the map (refers to the waveform's carrier).
     """
 
     time: np.ndarray
@@ -68,61 +82,25 @@ class Signature:
     range_distribution: np.ndarray
     valid: np.ndarray
     power: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    carrier_hz: float = 0.0
+    v_max: float = 0.0
+    range_doppler: np.ndarray | None = None
+    range_doppler_time: np.ndarray | None = None
+    range_doppler_velocity: np.ndarray | None = None
 
 
-def range_profiles(iq: np.ndarray, wf: Waveform, cfg: DSPConfig = DSPConfig()) -> tuple[np.ndarray, np.ndarray]:
-    """Range FFT of raw IQ [C, N] (eq. 5): (profiles [C, N] complex64, range axis [N] in m).
-
-    The IQ is complex, so all N bins are positive beat frequencies k fs / N, i.e. ranges k * dR.
-    """
-    n = wf.samples_per_chirp
-    if iq.shape[-1] != n:
-        raise ValueError(f"IQ has {iq.shape[-1]} samples per chirp, waveform says {n}")
-    taper = get_window(cfg.range_window, n, fftbins=True).astype(np.float32)
-    prof = np.fft.fft(iq * taper, axis=-1).astype(np.complex64) / np.float32(taper.sum())
-    return prof, np.arange(n) * wf.range_resolution
-
-
-def remove_static(profiles: np.ndarray, cfg: DSPConfig = DSPConfig()) -> np.ndarray:
-    """Range profiles with each bin's slow-time mean removed (static walls and furniture vanish)."""
-    if cfg.static_removal == "none" or profiles.shape[0] == 0:
-        return profiles
-    return profiles - profiles.mean(axis=0, keepdims=True)
-
-
-def coherent_range_sum(iq: np.ndarray, wf: Waveform, cfg: DSPConfig, sel: np.ndarray) -> tuple[np.ndarray, float]:
-    """Seed eq. 6's inner integral over beat frequency: the selected band of range bins summed coherently.
-
-    A plain DFT is periodic in fast time, so summing a band of its bins weights both the start *and*
-    the end of the chirp, whose carrier phases differ by 2 pi B tau: the sum then beats as the target
-    moves and biases the Doppler. The seed's integral runs over a non-periodic chirp, which the
-    2N-point zero-padded DFT reproduces; the band sum collapses to one weight vector over fast time.
-
-    Returns (slow-time signal [C], effective carrier [Hz]): the weights sit near the start of the chirp,
-    so the Doppler they see is that of the instantaneous frequency there, f0 - B/2 + gamma * <t'>,
-    not the centre frequency (a 0.5 % velocity-scale difference at the seed's settings).
-    """
-    n = wf.samples_per_chirp
-    k = np.flatnonzero(sel) * 2  # bins of the N-point FFT sit at even bins of the 2N-point one
-    k = np.arange(k.min(), k.max() + 1)
-    taper = get_window(cfg.range_window, n, fftbins=True)
-    h = np.exp(-2j * np.pi * np.outer(np.arange(n), k) / (2 * n)).sum(axis=1) * taper / taper.sum()
-    x = iq.astype(np.complex128) @ h
-    w2 = np.abs(h) ** 2
-    f_eff = wf.start_hz + wf.slope * float((np.arange(n) / wf.fs) @ w2 / w2.sum())
-    return (x - x.mean() if cfg.static_removal == "mean" and x.size else x), f_eff
-
-
-def mean_velocity(p_vt: np.ndarray, velocity: np.ndarray, v_max: float, cfg: DSPConfig = DSPConfig()) -> np.ndarray:
+def mean_velocity(p_vt: np.ndarray, velocity: np.ndarray, v_max: float, cfg: DSPConfig = DSPConfig(),
+                  periodic: bool = True) -> np.ndarray:
     """Mean radial velocity [T] in m/s of p(v,t) [V, T] on the axis `velocity` [V] (seed eq. 8).
 
     The sampled Doppler spectrum is periodic in v with period 2 v_max, so eq. 8's integral over all v
     has to pick one period. 'seed' takes [-v_max, v_max); 'unwrapped' takes the period centred on the
     distribution's circular mean, which is the same for any signature away from +-v_max but removes the
     bias that the rectangular window's sidelobes, wrapping round the band edge, give a fast target.
+    `periodic=False` (a cropped axis, not a whole period) always uses 'seed'.
     """
     mean = velocity @ p_vt
-    if cfg.mean_velocity == "seed" or p_vt.size == 0:
+    if cfg.mean_velocity == "seed" or not periodic or p_vt.size == 0:
         return mean
     z = np.exp(1j * np.pi * velocity / v_max) @ p_vt
     centre = np.angle(z) * v_max / np.pi
@@ -131,57 +109,104 @@ def mean_velocity(p_vt: np.ndarray, velocity: np.ndarray, v_max: float, cfg: DSP
     return np.where(use, (v * p_vt).sum(axis=0), mean)
 
 
-def _normalise(power: np.ndarray, floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Column-normalised distribution of power [X, T], with empty columns set to 0 (never NaN)."""
+def _normalise(power: np.ndarray, floor: float, reference: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Column-normalised distribution of power [X, T], with columns below `floor` times the larger of the
+    strongest column and `reference` set to 0 (never NaN)."""
     total = power.sum(axis=0)
-    peak = total.max() if total.size else 0.0
+    peak = max(total.max() if total.size else 0.0, reference)
     valid = total > max(floor * peak, np.finfo(np.float64).tiny)
     dist = np.zeros_like(power)
     dist[:, valid] = power[:, valid] / total[valid]
     return dist, valid, total
 
 
-def signatures(iq: np.ndarray, wf: Waveform, cfg: DSPConfig = DSPConfig(), t0: float = 0.0) -> Signature:
-    """All signatures of one link from raw IQ [C, N] whose first chirp starts at t0 seconds.
+def _doppler_taper(cfg: DSPConfig) -> np.ndarray:
+    taper = get_window(cfg.doppler_window, cfg.window_chirps, fftbins=not cfg.doppler_window_symmetric)
+    return taper / np.sqrt((taper ** 2).sum())  # unit energy: a tone's power is the same for every taper
 
-    Returns a `Signature` with p(v,t) over `cfg.window_chirps`-chirp windows every `cfg.hop_chirps`
-    chirps (seed eqs. 6-8) and the range distribution over the same windows (eqs. 9-10; the power is
-    averaged over each window, i.e. eq. 9 with the magnitude taken per Doppler bin, by Parseval).
+
+def _stft(x: np.ndarray, starts: np.ndarray, cfg: DSPConfig, reduce) -> np.ndarray:
+    """reduce(S) over chunks of windows, S [t, ..., nfft] the slow-time FFT of x [C, ...] in velocity order
+    (index i <-> FFT bin (nfft // 2 - i) mod nfft: ascending velocity, see the module docstring)."""
+    w, nfft = cfg.window_chirps, cfg.nfft
+    taper = _doppler_taper(cfg)
+    order = (nfft // 2 - np.arange(nfft)) % nfft
+    per_window = nfft * max(1, int(np.prod(x.shape[1:])))
+    step = max(1, _CHUNK // per_window)
+    out = []
+    for i in range(0, starts.size, step):
+        seg = x[starts[i:i + step, None] + np.arange(w)]  # [t, W, ...]
+        seg = np.moveaxis(seg, 1, -1) * taper
+        out.append(reduce(np.fft.fft(seg, n=nfft, axis=-1)[..., order]))
+    return np.concatenate(out) if out else reduce(np.zeros((0,) + x.shape[1:] + (nfft,), complex))
+
+
+def _velocity_axis(carrier_hz: float, pri_s: float, nfft: int) -> np.ndarray:
+    dv = C0 / (2 * carrier_hz * nfft * pri_s)
+    return (np.arange(nfft) - nfft // 2) * dv
+
+
+def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig()) -> Signature:
+    """Slow-time stage: all signatures of one link from its fast-time `Projection`.
+
+    Clutter removal (`cfg.static_removal`) on the range profiles and on the coherent sum's slow-time
+    signal; p(v,t) over `cfg.window_chirps`-chirp windows every `cfg.hop_chirps` chirps (seed eqs. 6-8)
+    from the range bins at or above `cfg.min_range_m`; the range distribution over the same windows from
+    every used bin (eqs. 9-10; the power is averaged over each window, i.e. eq. 9 with the magnitude taken
+    per Doppler bin, by Parseval); the range-Doppler map over those bins every `cfg.rd_stride(PRI)`-th window.
     """
-    w, hop = cfg.window_chirps, cfg.hop_chirps
-    prof, rng = range_profiles(iq, wf, cfg)
-    prof = remove_static(prof, cfg)
-    r_max = wf.max_range_m if cfg.max_range_m is None else cfg.max_range_m
-    sel = (rng >= cfg.min_range_m) & (rng <= r_max + 0.5 * wf.range_resolution)
-    if not sel.any():
-        raise ValueError(f"no range bin between {cfg.min_range_m} and {r_max} m (bin spacing "
-                         f"{wf.range_resolution:.3f} m)")
-    n_win = (prof.shape[0] - w) // hop + 1 if prof.shape[0] >= w else 0
+    wf: Waveform = proj.waveform
+    prf, w, hop, nfft = 1.0 / wf.pri_s, cfg.window_chirps, cfg.hop_chirps, cfg.nfft
+    prof = mti_filter(proj.profiles, prf, wf.carrier_hz, cfg)
+    band = doppler_band(proj.range, wf, cfg)
+    raw = np.abs(proj.profiles).astype(np.float64) ** 2  # before clutter removal: the empty-window reference
+    raw_peak = float(raw.sum(axis=1).max()) if raw.size else 0.0
+    n_c = prof.shape[0]
+    n_win = (n_c - w) // hop + 1 if n_c >= w else 0
     starts = np.arange(n_win) * hop
-    time = t0 + (starts + w / 2) * wf.pri_s
+    time = proj.t0 + (starts + w / 2) * wf.pri_s
 
-    taper = get_window(cfg.doppler_window, w, fftbins=True)
-    taper = taper / np.sqrt((taper ** 2).sum())
-    nb = int(sel.sum())
     if cfg.range_sum == "coherent":
-        x, f_eff = coherent_range_sum(iq, wf, cfg, sel)
-        win = sliding_window_view(x, w)[::hop] if n_win else np.zeros((0, w), complex)
-        power = np.abs(np.fft.fft(win * taper, axis=1)) ** 2  # [T, W]
+        if proj.coherent is None:
+            raise ValueError("range_sum 'coherent' needs the projection's coherent slow-time signal")
+        x = mti_filter(proj.coherent, prf, wf.carrier_hz, cfg)
+        f_ref = proj.coherent_carrier_hz
+        # unit-energy taper: a window's total power nfft sum |x w|^2 is at most nfft max |x|^2
+        ref = nfft * float(np.max(np.abs(proj.coherent) ** 2)) if n_c else 0.0
+        spec = _stft(x, starts, cfg, lambda s: np.abs(s) ** 2)
     else:
-        f_eff = wf.carrier_hz  # a range bin's phase refers to mid-chirp, i.e. the centre frequency
-        win = sliding_window_view(prof[:, sel], w, axis=0)[::hop] if n_win else np.zeros((0, nb, w), complex)
-        power = (np.abs(np.fft.fft(win * taper, axis=2)) ** 2).sum(axis=1)
-    # Phase exp(+j 2 pi f0 tau) falls as an approaching target's delay shrinks, so its Doppler
-    # frequency is negative: v = -f lambda / 2. Reversing the shifted FFT axis makes v ascending.
-    fd = np.fft.fftshift(np.fft.fftfreq(w, wf.pri_s))
-    velocity = (-fd * C0 / (2 * f_eff))[::-1]
-    spec = np.fft.fftshift(power, axes=1)[:, ::-1].T  # [V, T]
-    p_vt, valid, total = _normalise(spec.astype(np.float64), cfg.empty_floor)
-    mean_v = mean_velocity(p_vt, velocity, (velocity[1] - velocity[0]) * w / 2, cfg)
+        f_ref = wf.carrier_hz
+        red = (lambda s: (np.abs(s) ** 2).sum(axis=1)) if cfg.range_sum == "incoherent" else \
+            (lambda s: np.abs(s).sum(axis=1) ** 2)
+        spec = _stft(prof[:, band], starts, cfg, red)
+        # (sum of R magnitudes)^2 <= R sum of squares
+        ref = nfft * float(raw[:, band].sum(axis=1).max()) * (band.sum() if cfg.range_sum == "magnitude" else 1)
+    velocity = _velocity_axis(f_ref, wf.pri_s, nfft)
+    v_max = C0 / (4 * f_ref * wf.pri_s)
+    keep = np.ones(nfft, bool) if cfg.velocity_crop_mps is None else \
+        np.abs(velocity) <= cfg.velocity_crop_mps * (1 + 1e-12)
+    p_vt, valid, total = _normalise(spec.T[keep].astype(np.float64), cfg.empty_floor, ref)
+    mean_v = mean_velocity(p_vt, velocity[keep], v_max, cfg, periodic=bool(keep.all()))
 
-    rsel = rng <= r_max + 0.5 * wf.range_resolution
-    rpow = np.abs(prof[:, rsel]) ** 2
-    rwin = sliding_window_view(rpow, w, axis=0)[::hop].mean(axis=2) if n_win else np.zeros((0, rsel.sum()))
-    rdist, _, _ = _normalise(rwin.T.astype(np.float64), cfg.empty_floor)
-    return Signature(time=time, velocity=velocity, p_vt=p_vt, mean_velocity=mean_v, range=rng[rsel],
-                     range_distribution=rdist, valid=valid, power=total)
+    rpow = np.abs(prof).astype(np.float64) ** 2
+    rwin = sliding_window_view(rpow, w, axis=0)[::hop].mean(axis=2) if n_win else np.zeros((0, rpow.shape[1]))
+    rdist, _, _ = _normalise(rwin.T, cfg.empty_floor, raw_peak)  # rwin: mean power per bin and window [T, R]
+
+    rd = rd_t = rd_v = None
+    if cfg.range_doppler:
+        sel = np.arange(0, n_win, cfg.rd_stride(wf.pri_s))
+        rd_v_full = _velocity_axis(wf.carrier_hz, wf.pri_s, nfft)
+        rd_keep = np.ones(nfft, bool) if cfg.velocity_crop_mps is None else \
+            np.abs(rd_v_full) <= cfg.velocity_crop_mps * (1 + 1e-12)
+        rd = _stft(prof, starts[sel], cfg, lambda s: (np.abs(s[..., rd_keep]) ** 2).astype(np.float32))
+        rd = np.ascontiguousarray(rd.transpose(1, 2, 0))  # [R, V, T_rd]
+        rd_t, rd_v = time[sel], rd_v_full[rd_keep]
+    return Signature(time=time, velocity=velocity[keep], p_vt=p_vt, mean_velocity=mean_v, range=proj.range,
+                     range_distribution=rdist, valid=valid, power=total, carrier_hz=float(f_ref),
+                     v_max=float(v_max), range_doppler=rd, range_doppler_time=rd_t, range_doppler_velocity=rd_v)
+
+
+def signatures(iq: np.ndarray, wf: Waveform, cfg: DSPConfig = DSPConfig(), t0: float = 0.0) -> Signature:
+    """All signatures of one link from raw IQ [C, N] whose first chirp starts at t0 seconds:
+    `signatures_from_projection(project(iq, wf, cfg, t0), cfg)`."""
+    return signatures_from_projection(project(iq, wf, cfg, t0), cfg)

@@ -2,8 +2,17 @@
 
 Layout (DESIGN.md): root attributes `activity`, `backend`, `seed`, `direction_deg`, `version`, `config`
 (JSON); one group per radar link holding `p_vt` [n_velocity, n_time], `velocity` [m/s], `time` [s],
-`mean_velocity` [n_time], `range_distribution` [n_range, n_time], `range` [m], `valid` [n_time] and
-optionally `iq` [n_chirps, n_samples]; group attributes `tx`, `rx` (m).
+`mean_velocity` [n_time], `range_distribution` [n_range, n_time], `range` [m], `valid` [n_time], `power`
+[n_time], the scalars `carrier_hz` (the carrier `velocity` refers to) and `v_max` [m/s], optionally the
+range-Doppler map `range_doppler` [n_range, n_rd_velocity, n_rd_time] (float32) with its axes
+`range_doppler_velocity` [m/s] and `range_doppler_time` [s] (the range axis is `range`), and optionally
+`iq` [n_chirps, n_samples]; group attributes `tx`, `rx` (m).
+
+Size. The range-Doppler map is the largest array: one map per `DSPConfig.rd_stride(PRI)`-th window
+(default: about 10 maps per second and never overlapping, `processing.dsp_config.RD_MIN_INTERVAL_S`),
+float32, gzip with byte shuffling; a 5 s walk at the seed's settings adds ~0.2 MB per link to ~0.2 MB of
+the rest. `DSPConfig(range_doppler=False)` leaves it out. Files of version 1 (no `carrier_hz`, `v_max`,
+map) still read: those fields keep their defaults (0, None).
 """
 from __future__ import annotations
 
@@ -18,8 +27,10 @@ import numpy as np
 from processing.atomic import temporary_sibling
 from processing.dsp import Signature
 
-FORMAT_VERSION = "1"
-_ARRAYS = ("p_vt", "velocity", "time", "mean_velocity", "range_distribution", "range", "valid", "power")
+FORMAT_VERSION = "2"
+_ARRAYS = ("p_vt", "velocity", "time", "mean_velocity", "range_distribution", "range", "valid", "power",
+           "range_doppler_velocity", "range_doppler_time")
+_SCALARS = ("carrier_hz", "v_max")
 
 
 def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, activity: str, backend: str,
@@ -36,7 +47,14 @@ def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, 
             for name, sig in signatures.items():
                 g = f.create_group(name)
                 for key in _ARRAYS:
-                    g.create_dataset(key, data=np.asarray(getattr(sig, key)), compression="gzip", compression_opts=4)
+                    if getattr(sig, key) is not None:
+                        g.create_dataset(key, data=np.asarray(getattr(sig, key)), compression="gzip",
+                                         compression_opts=4)
+                for key in _SCALARS:
+                    g.create_dataset(key, data=np.float64(getattr(sig, key)))
+                if sig.range_doppler is not None:
+                    g.create_dataset("range_doppler", data=np.asarray(sig.range_doppler, np.float32),
+                                     compression="gzip", compression_opts=4, shuffle=True)
                 if iq is not None and name in iq:
                     g.create_dataset("iq", data=iq[name], compression="gzip", compression_opts=1)
                 for key, value in (link_attrs or {}).get(name, {}).items():
@@ -56,5 +74,6 @@ def read_signature_file(path: str | Path) -> tuple[dict, dict[str, Signature]]:
         sigs = {}
         for name, g in f.items():
             kw = {fl.name: g[fl.name][()] for fl in fields(Signature) if fl.name in g}
+            kw.update({k: float(kw[k]) for k in _SCALARS if k in kw})
             sigs[name] = Signature(**kw)
     return attrs, sigs

@@ -163,6 +163,9 @@ def train_spec(spec: str, args, out: Path, log=print):
     meta = {"train_spec": spec, "n_train": int(res.train_idx.size), "n_val": int(va.size), "best_epoch": res.best_epoch,
             "train_seconds": res.seconds, "load_seconds": t_load, "train_config": tcfg.model_dump(mode="json"),
             "val_items": [reader.entries[idx[i]]["item_id"] for i in va], "val_accuracy": rep.accuracy}
+    # the DSP settings of the training data, so that `evaluate --recordings` processes real IQ the same way
+    dsps = {json.dumps(reader.entries[i].get("params", {}).get("radar", {}).get("dsp"), sort_keys=True) for i in idx}
+    meta["dsp"] = json.loads(dsps.pop()) if len(dsps) == 1 else None
     save_checkpoint(out, clf, history=res.history, extra=meta)
     stem = out.with_suffix("")
     plot_history(res.history, f"{stem}_curves.png", res.best_epoch, title=f"training history ({spec})")
@@ -227,8 +230,8 @@ def _recording_inputs(clf, args):
     if args.label is not None and args.label not in clf.classes:
         raise _user_error()(f"--label must be one of {', '.join(clf.classes)}")
     try:
-        samples = recording_samples(paths, clf.links, n_channels=args.channels, conjugate=args.conjugate,
-                                    allow_partial=args.allow_partial)
+        samples = recording_samples(paths, clf.links, dsp=clf.meta.get("dsp"), n_channels=args.channels,
+                                    conjugate=args.conjugate, allow_partial=args.allow_partial)
     except ValueError as e:
         raise _user_error()(str(e)) from None
     names, y, keep = [], [], []

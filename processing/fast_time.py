@@ -1,0 +1,152 @@
+"""Fast-time stage of the radar DSP: raw IQ [chirps, samples] -> range profiles and the coherent range sum.
+
+Both are linear maps of each chirp's N samples, given here as weight matrices so that a synthesiser can
+produce them straight from paths, without raw IQ: for a path of gain a and delay tau (short-time stationary
+over the chirp, as in `processing.synthesis`), chirp c contributes a * `path_response(W, tau, wf)` to
+`iq[c] @ W`. A `Projection` built that way goes through `processing.dsp.signatures_from_projection`
+exactly like one from `project(iq, ...)`.
+
+Range bins. Bin k of the N-point range FFT is the beat frequency k fs / N, i.e. range k dR (bistatic: half
+the total path). The used bins run from 0 to the largest range `DSPConfig.max_range_m` (default: the
+waveform's `max_range_m`); with `range_bins="positive_half"` only bins below N/2 are kept (the Glasgow
+script's fftshifted positive half, for complex ADCs whose anti-alias filter cuts at fs/2).
+
+Coherent range sum (seed eq. 6). The inner integral of eq. 6 sums the beat spectrum over the band of range
+bins [min_range_m, max range]; over the chirp this collapses to one weight vector h over fast time. A
+plain DFT is periodic in fast time, so the band sum would weight both ends of the chirp (whose carrier
+phases differ by 2 pi B tau); the seed's integral runs over a non-periodic chirp, which the 2N-point
+zero-padded DFT reproduces. The weights form a band-limited pulse of about R_unamb / max_range samples at
+the start of the chirp (91 % of the weight on the first 8 of 128 samples at the seed's settings), so the
+Doppler they see is that of the instantaneous frequency there, f0 - B/2 + gamma <t'>: the effective
+carrier `coherent_weights` returns (0.4-0.5 % below the centre frequency at the seed's settings, ~3 % at
+5.8 GHz / 400 MHz). `DSPConfig.coherent_offset_samples` = m0 (default N // 16) skips the first m0 samples
+after the chirp reset, where real sawtooth hardware has its synthesiser's settling transient: eq. 6 is
+then evaluated on the chirp from sample m0 on (N - m0 samples, 2(N - m0)-point DFT, the same band in
+metres), the weights are exactly 0 on the skipped samples, the pulse starts at m0 and the effective
+carrier moves up by about gamma m0 / fs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import get_window
+
+from processing.waveform import Waveform
+
+
+@dataclass
+class Projection:
+    """Fast-time projection of one link: everything the slow-time stage needs.
+
+    Attributes:
+        profiles: range profiles [C, R] (complex) of the used range bins, before clutter removal.
+        range: range axis [R] in metres (bistatic: half the total path).
+        waveform: the waveform (PRI, carrier) of the recording.
+        coherent: slow-time signal [C] of the coherent range sum (eq. 6), or None when
+            `DSPConfig.range_sum` is not "coherent".
+        coherent_carrier_hz: carrier [Hz] the coherent sum's Doppler refers to (see module docstring).
+        t0: start time [s] of the first chirp.
+    """
+
+    profiles: np.ndarray
+    range: np.ndarray
+    waveform: Waveform
+    coherent: np.ndarray | None = None
+    coherent_carrier_hz: float = 0.0
+    t0: float = 0.0
+
+
+def max_range(wf: Waveform, cfg) -> float:
+    """Largest used range [m]: `cfg.max_range_m` or the waveform's `max_range_m`."""
+    return wf.max_range_m if cfg.max_range_m is None else cfg.max_range_m
+
+
+def range_bins(wf: Waveform, cfg) -> np.ndarray:
+    """Indices of the used range bins (0 .. the bin of the largest range; below N/2 for "positive_half")."""
+    n = wf.samples_per_chirp
+    k = np.arange(n)
+    used = k * wf.range_resolution <= max_range(wf, cfg) + 0.5 * wf.range_resolution
+    if cfg.range_bins == "positive_half":
+        used &= k < n // 2
+    return np.flatnonzero(used)
+
+
+def doppler_band(rng: np.ndarray, wf: Waveform, cfg) -> np.ndarray:
+    """Boolean mask over the used range axis `rng` [m] of the bins summed for p(v,t): those whose centre is
+    at most half a bin below `min_range_m` (both ends of the band take the bin containing the limit)."""
+    band = rng >= cfg.min_range_m - 0.5 * wf.range_resolution
+    if not band.any():
+        raise ValueError(f"no range bin between {cfg.min_range_m} and {max_range(wf, cfg)} m (bin spacing "
+                         f"{wf.range_resolution:.3f} m)")
+    return band
+
+
+def range_weights(wf: Waveform, cfg) -> tuple[np.ndarray, np.ndarray]:
+    """(W [N, R] complex128, range [R] m): the range FFT (eq. 5, `range_window` taper, amplitude-normalised)
+    restricted to the used bins, so that profiles = iq @ W."""
+    n = wf.samples_per_chirp
+    k = range_bins(wf, cfg)
+    taper = get_window(cfg.range_window, n, fftbins=True)
+    w = np.exp(-2j * np.pi * np.outer(np.arange(n), k) / n) * (taper / taper.sum())[:, None]
+    return w, k * wf.range_resolution
+
+
+def coherent_offset(wf: Waveform, cfg) -> int:
+    """Fast-time samples m0 skipped by the coherent sum: `cfg.coherent_offset_samples`, default N // 16."""
+    m0 = cfg.coherent_offset_samples
+    return wf.samples_per_chirp // 16 if m0 is None else m0
+
+
+def coherent_weights(wf: Waveform, cfg) -> tuple[np.ndarray, float]:
+    """(h [N] complex128, effective carrier [Hz]) of the coherent range sum: slow-time signal = iq @ h.
+
+    Eq. 6's band sum over [min_range_m, max range] evaluated on the chirp from sample
+    m0 = `coherent_offset_samples` on (see the module docstring); h is 0 on samples 0..m0-1.
+    """
+    n = wf.samples_per_chirp
+    m0 = coherent_offset(wf, cfg)
+    if not 0 <= m0 <= n - 8:
+        raise ValueError(f"coherent_offset_samples = {m0} leaves fewer than 8 of the {n} samples per chirp")
+    k_used = range_bins(wf, cfg)
+    band = k_used[doppler_band(k_used * wf.range_resolution, wf, cfg)]
+    n_seg = n - m0
+    # band edges in beat frequency (units of fs / N) mapped onto the 2 n_seg-point grid of the segment
+    lo = int(np.ceil(band.min() * 2 * n_seg / n - 1e-9))
+    hi = int(np.floor(band.max() * 2 * n_seg / n + 1e-9))
+    k2 = np.arange(lo, max(hi, lo) + 1)
+    m = np.arange(n_seg)
+    taper = get_window(cfg.range_window, n_seg, fftbins=True)
+    seg = np.exp(-2j * np.pi * np.outer(m, k2) / (2 * n_seg)).sum(axis=1) * taper / taper.sum()
+    h = np.zeros(n, np.complex128)
+    h[m0:] = seg
+    w2 = np.abs(h) ** 2
+    f_eff = wf.start_hz + wf.slope * float((np.arange(n) / wf.fs) @ w2 / w2.sum())
+    return h, f_eff
+
+
+def path_response(weights: np.ndarray, tau, wf: Waveform) -> np.ndarray:
+    """Projection [..., K] of one chirp of a unit-gain path with delay `tau` [s] (array [...]) through
+    `weights` [N, K] or [N]: exp(j 2 pi f_s tau) sum_m W[m] exp(j 2 pi gamma tau m / fs) (seed eq. 3)."""
+    tau = np.asarray(tau, dtype=np.float64)[..., None]
+    m = np.arange(wf.samples_per_chirp)
+    tone = np.exp(2j * np.pi * (wf.start_hz * tau + wf.slope * tau * m / wf.fs))  # [..., N]
+    return tone @ weights
+
+
+def project(iq: np.ndarray, wf: Waveform, cfg, t0: float = 0.0) -> Projection:
+    """Fast-time stage: raw IQ [C, N] whose first chirp starts at t0 [s] -> `Projection`."""
+    n = wf.samples_per_chirp
+    if iq.ndim != 2 or iq.shape[-1] != n:
+        raise ValueError(f"IQ must be [chirps, {n}] (the waveform's samples per chirp), got {iq.shape}")
+    k = range_bins(wf, cfg)
+    rng = k * wf.range_resolution
+    doppler_band(rng, wf, cfg)
+    taper = get_window(cfg.range_window, n, fftbins=True).astype(np.float32)
+    # the FFT is the same linear map as range_weights (to float rounding) and N log N instead of N R
+    prof = (np.fft.fft(iq * taper, axis=-1)[:, k] / np.float32(taper.sum())).astype(np.complex64)
+    coh, f_eff = None, wf.carrier_hz
+    if cfg.range_sum == "coherent":
+        h, f_eff = coherent_weights(wf, cfg)
+        coh = iq.astype(np.complex128) @ h
+    return Projection(profiles=prof, range=rng, waveform=wf, coherent=coh, coherent_carrier_hz=f_eff, t0=t0)
