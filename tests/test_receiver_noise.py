@@ -6,7 +6,14 @@ import pytest
 from pydantic import ValidationError
 
 from processing.antenna import directivity_dbi
-from processing.dsp import DSPConfig, range_profiles, signatures
+from processing.dsp import DSPConfig, signatures
+from processing.fast_time import project
+
+
+def range_profiles(iq, wf, cfg=DSPConfig()):
+    """All N range bins of the DSP's range FFT (its normalisation), and their ranges [m]."""
+    proj = project(iq, wf, cfg.model_copy(update={"max_range_m": 1e6}))
+    return proj.profiles, proj.range
 from processing.pathset import PathSet
 from processing.receiver import (ANCORTEK_2400T2R4, ANCORTEK_580AD, K_BOLTZMANN, LeakageConfig, ReceiverConfig,
                                  add_receiver_noise, noise_power_per_sample, processing_gain_db,
