@@ -66,7 +66,7 @@ def test_simulate_writes_signature_file_and_plots(tmp_path):
         assert g["velocity"].shape == (nv,) and g["time"].shape == (nt,) and g["mean_velocity"].shape == (nt,)
         assert g["range_distribution"].shape == (g["range"].shape[0], nt)
         assert g["iq"].shape[1] == 128 and np.isfinite(g["p_vt"][()]).all()
-    for png in ("pvt.png", "mean_velocity.png", "range.png"):
+    for png in ("pvt.png", "mean_velocity.png", "range.png", "range_doppler.png"):
         assert (out / png).stat().st_size > 10_000
 
 
