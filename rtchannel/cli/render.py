@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from rtchannel.cli.common import UserError, add_motion_args, add_radar_args, build_motion, load_radar
+from rtchannel.cli.simulate import add_chair_arg, scene_with_chair
 
 
 def add_render(sub) -> None:
@@ -21,6 +22,7 @@ def add_render(sub) -> None:
     p.add_argument("--lod", default="10k", help="avatar level of detail: full, 10k, 5k, 2k (default 10k)")
     p.add_argument("--scene", default="room", help="static geometry to draw: room (default), free_space or a "
                    "Mitsuba XML file (walls facing the camera are cut away)")
+    add_chair_arg(p)
     p.set_defaults(func=cmd_render)
 
 
@@ -36,7 +38,7 @@ def cmd_render(args) -> int:
     antennas = [p for link in radar.links for p in {tuple(link.tx_pos), tuple(link.rx_pos)}]
     from rtchannel.scene.spec import Scene
 
-    scene = Scene(args.scene)
+    scene = scene_with_chair(Scene(args.scene), motion, args.chair)
     scene.xml_path()  # a missing scene is a one-line user error before any rendering
     print(f"wrote {render_scene(motion, frames, antennas, args.out, lod=args.lod, scene=scene, frequency_hz=radar.waveform.carrier_hz)}")
     if args.strip:

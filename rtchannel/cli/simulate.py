@@ -15,6 +15,7 @@ def add_simulate(sub) -> None:
     p.add_argument("--backend", default="points", help="scattering backend: points, facets or sionna (default points)")
     p.add_argument("--scene", help="mesh backends: room, free_space or a Mitsuba XML file (default room)")
     p.add_argument("--lod", help="mesh backends: avatar level of detail full, 10k, 5k, 2k (default 10k)")
+    add_chair_arg(p)
     p.add_argument("--option", action="append", metavar="NAME=VALUE",
                    help="any other backend option, e.g. walls=false, trace_fps=30, samples_per_src=100000")
     p.add_argument("--out", required=True, type=Path, help="output folder")
@@ -23,6 +24,24 @@ def add_simulate(sub) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_simulate)
+
+
+def add_chair_arg(p) -> None:
+    """--chair auto|none (read by `scene_with_chair`)."""
+    p.add_argument("--chair", choices=("auto", "none"), default="auto",
+                   help="mesh backends and render: auto (default) puts a wooden chair under the person for sit "
+                   "and stand, placed from the motion (seat height, facing, backrest behind); none: no chair")
+
+
+def scene_with_chair(scene, motion, chair: str):
+    """`scene` plus the chair `--chair` asks for (`rtchannel.scene.chair_fit.scene_for`); a one-line user
+    error when a sit/stand motion has no seated phase."""
+    from rtchannel.scene.chair_fit import scene_for
+
+    try:
+        return scene_for(motion, scene, chair)
+    except ValueError as e:
+        raise UserError(f"--chair {chair}: {e}; use --chair none") from None
 
 
 def backend_options(args) -> dict:
@@ -55,6 +74,10 @@ def cmd_simulate(args) -> int:
     radar, angle = load_radar(args)
     motion = build_motion(args)
     scene = Scene(args.scene) if args.scene is not None else None
+    if args.backend != "points":  # the points backend is free space: no furniture
+        scene = scene_with_chair(scene, motion, args.chair)
+        if scene is not None and scene.furniture:
+            print(f"scene {scene.name}: " + "; ".join(f.note or f.label for f in scene.furniture))
     n_chirps = int(motion.duration / radar.waveform.pri_s + 1) * len(radar.links)
     with tqdm(total=n_chirps, unit="chirp", disable=args.quiet or None, desc=f"{args.activity}") as bar:
         result = simulate(motion, radar, args.backend, scene=scene, keep_iq=args.keep_iq, progress=bar.update,

@@ -349,9 +349,15 @@ class RTScene:
     def check_clearance(self, points: np.ndarray, min_distance: float = 0.01) -> None:
         """Raise RadarPlacementError if any point [N, 3] (m) is closer than `min_distance` (m) to geometry.
 
-        The message names the point, its distance and the nearest object (a static shape or "body").
+        The message names the point, its distance and the nearest object (a static shape or "body"). A point
+        inside a closed static shape (furniture, a cube; winding number > 1/2) is rejected too, however far
+        from its surface.
         """
         pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        for name, v, f, _ in self._static:
+            if _is_closed(v, f):
+                for p in pts[np.abs(_winding_numbers(pts, v, f)) > 0.5]:
+                    raise RadarPlacementError(f"antenna at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m is inside '{name}'")
         meshes = [(n, v, f) for n, v, f, _ in self._static] + [(BODY_ID, self.body_vertices, self.body_faces)]
         for p in pts:
             best, who = np.inf, ""
@@ -396,6 +402,28 @@ class RTScene:
         t = np.where(hit, _to_np(pi.t).astype(np.float64), np.inf)
         prim = np.where(hit, _to_np(pi.prim_index).astype(np.int64), -1)
         return {"hit": hit, "t": t, "body": hit & (sid == self.body_object_id), "prim": prim}
+
+
+def _is_closed(v: np.ndarray, f: np.ndarray) -> bool:
+    """True if the triangles [T, 3] bound volumes (a closed mesh or a union of closed parts, e.g. boxes):
+    with vertices welded by position (1e-6 m), every directed edge is used as often as its reverse."""
+    _, weld = np.unique(np.round(v / 1e-6).astype(np.int64), axis=0, return_inverse=True)
+    g = weld.ravel()[f]
+    edges = np.concatenate([g[:, [0, 1]], g[:, [1, 2]], g[:, [2, 0]]])
+    fwd, back = (np.unique(e, axis=0, return_counts=True) for e in (edges, edges[:, ::-1]))
+    return len(fwd[0]) == len(back[0]) and all(np.array_equal(x, y) for x, y in zip(fwd, back))
+
+
+def _winding_numbers(points: np.ndarray, v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Generalised winding number [N] of closed triangle meshes around points [N, 3]: the sum of the signed
+    solid angles of the triangles / 4 pi (Van Oosterom & Strackee 1983); the number of volumes containing
+    the point (negative for inward winding), also for overlapping closed parts."""
+    a, b, c = (v[f[:, i]][None] - points[:, None] for i in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+    det = np.einsum("nti,nti->nt", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("nti,nti->nt", a, b) * lc + np.einsum("nti,nti->nt", a, c) * lb
+           + np.einsum("nti,nti->nt", b, c) * la)
+    return 2.0 * np.arctan2(det, den).sum(axis=1) / (4 * np.pi)
 
 
 _CACHE: "OrderedDict[tuple, tuple[RTScene, np.ndarray]]" = OrderedDict()  # key -> (scene, rest vertices)

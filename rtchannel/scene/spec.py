@@ -1,12 +1,15 @@
-"""`Scene`: what the person moves in — a room, free space or a user's Mitsuba XML file.
+"""`Scene`: what the person moves in — a room, free space or a user's Mitsuba XML file, plus furniture.
 
 A `Scene` is a light description (no Mitsuba is loaded until a mesh backend traces it). The mesh
 backends (`facets`, `sionna`) ray-trace the body inside it; the `points` backend is the seed's free-space
-model and ignores it.
+model and ignores it. Furniture (`rtchannel.scene.furniture.Furniture`, e.g. the chair `with_chair_for`
+places under a sitter) is written with the base scene into a generated, content-addressed scene file
+(`xml_path`), so the ray tracer sees it as static geometry: it occludes the body and, being static, its
+own returns are what the DSP's clutter removal takes out (see `scenes/README.md`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 
@@ -18,9 +21,19 @@ class Scene:
         source: "room" (8 x 8 m concrete room with floor and 3 m walls, `scenes/room.xml`), "free_space"
             (nothing but the body) or the path of a Mitsuba 3 XML file whose shapes carry radio
             materials (see `scenes/README.md`).
+        furniture: static pieces added to the source (`rtchannel.scene.furniture.Furniture`).
     """
 
     source: str | Path = "room"
+    furniture: tuple = field(default=())
+
+    def __post_init__(self):
+        from rtchannel.scene.furniture import Furniture
+
+        items = tuple(self.furniture)
+        if not all(isinstance(f, Furniture) for f in items):
+            raise TypeError("Scene.furniture must hold rtchannel.scene.furniture.Furniture items")
+        object.__setattr__(self, "furniture", items)
 
     @classmethod
     def room(cls) -> "Scene":
@@ -37,8 +50,22 @@ class Scene:
         """A user's Mitsuba 3 scene file (its shapes need radio materials; the id "body" is reserved)."""
         return cls(Path(path))
 
-    def xml_path(self) -> Path:
-        """The resolved scene file; raises ValueError if it does not exist."""
+    def with_furniture(self, *items) -> "Scene":
+        """This scene plus `items` (`Furniture`, or dicts of its fields)."""
+        from rtchannel.scene.furniture import Furniture
+
+        new = tuple(f if isinstance(f, Furniture) else Furniture(**f) for f in items)
+        return replace(self, furniture=self.furniture + new)
+
+    def with_chair_for(self, motion, **options) -> "Scene":
+        """This scene plus the built-in chair placed under the seated person of `motion`
+        (`rtchannel.scene.chair_fit.chair_for`; `options` go to it). Raises ValueError without a seated phase."""
+        from rtchannel.scene.chair_fit import chair_for
+
+        return self.with_furniture(chair_for(motion, **options))
+
+    def base_xml_path(self) -> Path:
+        """The source's scene file, without furniture; raises ValueError if it does not exist."""
         from rtchannel.scene.rt_scene import SCENES
 
         path = SCENES.get(str(self.source), Path(self.source))
@@ -46,14 +73,36 @@ class Scene:
             raise ValueError(f"scene '{self.source}' is neither one of {', '.join(SCENES)} nor an existing XML file")
         return path.resolve()
 
+    def xml_path(self) -> Path:
+        """The scene file the ray tracer loads: the source's, or with furniture a generated one in the cache
+        folder (`furniture.furnished_scene_xml`; its path changes with the content). Raises ValueError if
+        the source does not exist."""
+        base = self.base_xml_path()
+        if not self.furniture:
+            return base
+        from rtchannel.scene.furniture import furnished_scene_xml
+
+        return furnished_scene_xml(base, self.furniture)
+
     @property
     def name(self) -> str:
-        """Short name for reports: the preset name or the file name."""
-        return str(self.source) if str(self.source) in ("room", "free_space") else Path(self.source).name
+        """Short name for reports: the preset name or the file name, with "+chair" etc. for furniture."""
+        base = str(self.source) if str(self.source) in ("room", "free_space") else Path(self.source).name
+        return base + "".join(f"+{f.label}" for f in self.furniture)
 
     def describe(self) -> dict:
-        """JSON-serialisable description stored with every simulation."""
-        return {"source": str(self.source)}
+        """JSON-serialisable description stored with every simulation (`from_describe` rebuilds the scene)."""
+        d = {"source": str(self.source)}
+        if self.furniture:
+            d["furniture"] = [f.describe() for f in self.furniture]
+        return d
+
+    @classmethod
+    def from_describe(cls, d: dict) -> "Scene":
+        """The scene `describe()` recorded."""
+        from rtchannel.scene.furniture import Furniture
+
+        return cls(d["source"], tuple(Furniture.from_describe(f) for f in d.get("furniture", ())))
 
     def __str__(self) -> str:
-        return str(self.source)
+        return str(self.source) + "".join(f"+{f.label}" for f in self.furniture)
