@@ -65,8 +65,9 @@ def _static_geometry(scene, height: float, frequency_hz: float, camera_origin) -
     for k, (name, v, f) in enumerate(rt.static_meshes):
         if name in hidden:
             continue
-        flat = np.ptp(v[:, 2]) < 1e-6  # floors and horizontal slabs in grey, the rest sand-coloured
-        shapes.append((v, f, (0.55, 0.55, 0.55) if flat else (0.78, 0.70, 0.55)))
+        flat = np.ptp(v[:, 2]) < 1e-6  # floors grey, walls sand, furniture wood-brown
+        colour = (0.50, 0.30, 0.15) if name.startswith("furniture") else (0.55,) * 3 if flat else (0.78, 0.70, 0.55)
+        shapes.append((v, f, colour))
     return shapes
 
 
