@@ -9,6 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from processing.atomic import savefig_atomic  # noqa: E402
 from processing.dsp import Signature  # noqa: E402
 
 DYNAMIC_RANGE_DB = 40.0
@@ -37,7 +38,7 @@ def plot_pvt(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
         fig.colorbar(im, ax=ax, label="dB")
     if title:
         fig.suptitle(title)
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -51,7 +52,7 @@ def plot_mean_velocity(sigs: dict[str, Signature], path: Path, title: str = "") 
     ax.set(xlabel="time [s]", ylabel="mean radial velocity [m/s]", title=title or "mean radial velocity")
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -66,7 +67,7 @@ def plot_range(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
         fig.colorbar(im, ax=ax, label="p'(r,t)")
     if title:
         fig.suptitle(title)
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
 
