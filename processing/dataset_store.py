@@ -234,7 +234,12 @@ def read_jsonl(path: str | Path, required: dict[str, type] | None = None) -> lis
             raise DatasetFormatError(f"{p}: line {i + 1}: expected a JSON object, got {type(row).__name__}")
         for key, typ in (required or {}).items():
             v = row.get(key)
-            if not isinstance(v, typ) or isinstance(v, bool) != (typ is bool):
+            ok = isinstance(v, typ) and isinstance(v, bool) == (typ is bool)
+            if ok and typ is list:  # lists and maps of the index hold names (links) and checksums
+                ok = all(isinstance(x, str) for x in v)
+            elif ok and typ is dict:
+                ok = all(isinstance(k, str) and isinstance(x, str) for k, x in v.items())
+            if not ok:
                 raise DatasetFormatError(f"{p}: line {i + 1}: entry lacks a valid {key!r} ({typ.__name__})")
         rows.append(row)
     return rows

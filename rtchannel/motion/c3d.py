@@ -49,6 +49,63 @@ def _header_frames(path: Path) -> int | None:
         return None
 
 
+# ezc3d (C++) crashes with a segmentation fault on some corrupted headers or parameter sections (byte
+# flips in the first 3 kB: 3 of 3 fuzz runs crashed) and may allocate what a corrupt header asks for, so
+# it runs in a child process with an address-space limit; a crash there is a one-line import error.
+C3D_CHILD_MEMORY = 8 << 30  # address space of the parsing process [bytes]
+C3D_CHILD_TIMEOUT_S = 600.0
+_CHILD = r"""
+import resource, sys
+limit = int(sys.argv[3])
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+import numpy as np
+try:
+    import ezc3d
+    c = ezc3d.c3d(sys.argv[1])
+    point = c["parameters"]["POINT"]
+    units = str(point["UNITS"]["value"][0]) if "UNITS" in point and len(point["UNITS"]["value"]) else ""
+    stated = int(point["FRAMES"]["value"][0]) if "FRAMES" in point and len(point["FRAMES"]["value"]) else -1
+    np.savez(sys.argv[2], points=np.asarray(c["data"]["points"], dtype=float),
+             rate=float(c["header"]["points"]["frame_rate"]), labels=np.array([str(x) for x in point["LABELS"]["value"]], dtype=str),
+             units=units, residuals=np.asarray(c["data"]["meta_points"]["residuals"], dtype=float), stated=stated)
+except MemoryError:
+    print("MemoryError: the file asks for more memory than allowed")
+    sys.exit(3)
+except Exception as exc:
+    print(f"{type(exc).__name__}: {' '.join(str(exc).split())[:120]}")
+    sys.exit(3)
+"""
+
+
+def _read_c3d_isolated(path: Path) -> dict:
+    """ezc3d's reading of `path` (points [4, M, F], rate, labels, units, residuals, stated frames), done in a
+    child process; MotionImportError if it fails, crashes, runs out of memory or time."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="rtchannel-c3d-") as tmp:
+        out = Path(tmp) / "markers.npz"
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+        try:
+            proc = subprocess.run([sys.executable, "-c", _CHILD, str(path), str(out), str(C3D_CHILD_MEMORY)],
+                                  capture_output=True, text=True, timeout=C3D_CHILD_TIMEOUT_S, env=env)
+        except subprocess.TimeoutExpired:
+            raise MotionImportError(path, f"not a readable C3D file (parsing took over {C3D_CHILD_TIMEOUT_S:.0f} s)") from None
+        if proc.returncode != 0 or not out.is_file():
+            why = proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else (
+                f"the C3D parser crashed (signal {-proc.returncode})" if proc.returncode < 0
+                else f"the C3D parser failed (exit status {proc.returncode})")
+            raise MotionImportError(path, f"not a readable C3D file ({one_line(why, 160)})")
+        with np.load(out, allow_pickle=False) as z:
+            got = {k: z[k] for k in z.files}
+    got["units"] = str(got["units"]) or None
+    got["stated"] = int(got["stated"]) if int(got["stated"]) >= 0 else None
+    got["labels"] = [str(x) for x in got["labels"]]
+    return got
+
+
 def read_markers(path) -> tuple[dict[str, np.ndarray], float, str | None]:
     """Marker trajectories {label: [F, 3]} in file units (NaN where missing), frame rate [Hz], units."""
     path = Path(path)
@@ -62,21 +119,9 @@ def read_markers(path) -> tuple[dict[str, np.ndarray], float, str | None]:
         raise MotionImportError(path, f"cannot read file: {exc.strerror or exc}") from None
     if size > MAX_C3D_BYTES:
         raise MotionImportError(path, f"file of {size / 2**20:.0f} MiB exceeds the {MAX_C3D_BYTES >> 20} MiB limit")
-    import ezc3d
-
-    try:
-        c = ezc3d.c3d(str(path))
-        pts = np.asarray(c["data"]["points"], dtype=float)
-        rate = float(c["header"]["points"]["frame_rate"])
-        point = c["parameters"]["POINT"]
-        labels = [str(x) for x in point["LABELS"]["value"]]
-        units = str(point["UNITS"]["value"][0]) if "UNITS" in point and len(point["UNITS"]["value"]) else None
-        residuals = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)
-        stated = int(point["FRAMES"]["value"][0]) if "FRAMES" in point else None
-    except MotionImportError:
-        raise
-    except Exception as exc:  # ezc3d raises OSError/RuntimeError/ValueError on malformed files
-        raise MotionImportError(path, f"not a readable C3D file ({type(exc).__name__}: {one_line(exc, 120)})") from None
+    got = _read_c3d_isolated(path)
+    pts, rate, labels, units, residuals, stated = (got["points"], float(got["rate"]), list(got["labels"]),
+                                                   got["units"], got["residuals"], got["stated"])
     n = pts.shape[2] if pts.ndim == 3 else 0
     expected = max(x for x in (stated or 0, _header_frames(path) or 0))
     if n == 0 or len(labels) < pts.shape[1]:

@@ -75,6 +75,9 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
             motion = retarget(src, height=height, activity=activity, align=align, floor=floor)
     except ValueError as exc:  # e.g. an implausible height
         raise MotionImportError(p, one_line(exc)) from None
+    except KeyError as exc:  # the joint map of the detected rig names a joint the file lacks
+        raise MotionImportError(p, f"the {src.kind or 'detected'} skeleton lacks joint "
+                                f"{str(exc.args[0] if exc.args else '?')[:60]!r} (renamed or missing joint?)") from None
     bad = ~(np.isfinite(motion.positions).all(axis=(1, 2)) & np.isfinite(motion.rotations).all(axis=(1, 2, 3)))
     if bad.any():
         raise MotionImportError(p, "retargeting gave non-finite joint positions (degenerate skeleton or markers: "
