@@ -156,3 +156,22 @@ def test_scene_outside_sandbox_is_one_line(tmp_path, capsys):
     assert main(args) == 2
     line = _one_error_line(capsys)
     assert "points outside the scene's folder" in line and "root:" not in line
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["simulate", "--activity", "fall", "--seed", str(2**70)], "seed"),  # ProceduralParams: stored as int64
+    (["train", "--data", "nowhere", "--floor-db", "inf"], "floor_db"),  # PreprocessConfig: finite only
+])
+def test_fixed_argument_bounds(tmp_path, capsys, args, needle):
+    assert main([*args, "--out", str(tmp_path / "o")]) == 2
+    assert needle in _one_error_line(capsys)
+
+
+def test_recording_shorter_than_one_window_writes_nothing(tmp_path, capsys):
+    """Last guard (issue 13, 6): an empty signature is never written with exit 0."""
+    cfg = tmp_path / "radar.yaml"
+    cfg.write_text("dsp:\n  window_chirps: 4096\n")  # 2 s of chirps at 0.5 ms; the motion lasts ~1.3 s
+    args = ["simulate", "--activity", "fall", "--duration", "0.9", "--radar-config", str(cfg), "--out",
+            str(tmp_path / "o"), "--quiet", "--no-plots"]
+    assert main(args) == 2
+    assert "no complete DSP window" in _one_error_line(capsys) and not (tmp_path / "o" / "signature.h5").exists()
