@@ -35,7 +35,7 @@ import h5py
 import numpy as np
 
 from processing.atomic import atomic_path, write_text_atomic
-from processing.errors import DatasetFormatError, one_line
+from processing.errors import DatasetFormatError, InputError, one_line
 
 ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")  # class order = label index
 SHARD_FORMAT = "rtchannel-dataset-shard/1"
@@ -64,6 +64,21 @@ def checksum(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
+
+
+def check_record(rec: dict) -> dict:
+    """`rec` unchanged if every link has at least one time bin and only finite arrays, else `InputError`
+    (an item whose motion is shorter than one DSP window, or a NaN from upstream, is never stored)."""
+    for link, arrays in rec["links"].items():
+        p_vt = np.asarray(arrays.get("p_vt"))
+        if p_vt.ndim != 2 or p_vt.shape[1] == 0:
+            raise InputError(f"item {rec['entry'].get('item_id')}: link {link}: no complete DSP window "
+                             "(motion shorter than window_chirps chirps)")
+        for key, a in arrays.items():
+            a = np.asarray(a)
+            if a.dtype.kind in "fc" and not np.isfinite(a).all():
+                raise InputError(f"item {rec['entry'].get('item_id')}: link {link}: {key} holds non-finite values")
+    return rec
 
 
 def write_shard(path: str | Path, records: Sequence[dict], attrs: dict | None = None) -> Path:

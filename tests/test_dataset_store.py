@@ -196,3 +196,18 @@ def test_reading_a_corrupt_item_is_a_one_line_error(dataset):
     assert not r.verify(i)
     with pytest.raises(DatasetFormatError, match=r"b\.h5: item 'fall-1' cannot be read .*re-run the dataset command"):
         r.load(i)
+
+
+def test_empty_or_nan_signatures_are_item_failures(rng):
+    """An item shorter than one DSP window (T = 0) or with a NaN is refused before it reaches a shard."""
+    from processing.dataset_store import check_record
+    from processing.errors import InputError
+    rec = _record("ok", "walk", 0.0, rng)
+    assert check_record(rec) is rec
+    empty = _record("short", "walk", 0.0, rng, t=0)
+    with pytest.raises(InputError, match="item short: link radar1: no complete DSP window"):
+        check_record(empty)
+    bad = _record("nan", "walk", 0.0, rng)
+    bad["links"]["radar2"]["mean_velocity"][3] = np.nan
+    with pytest.raises(InputError, match="item nan: link radar2: mean_velocity holds non-finite values"):
+        check_record(bad)

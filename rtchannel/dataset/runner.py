@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from processing.atomic import write_text_atomic
-from processing.dataset_store import (ERRORS, PLAN, SHARDS, append_jsonl, read_shard_entries, remove_orphans,
-                                      scan_shards, write_index, write_shard)
+from processing.dataset_store import (ERRORS, PLAN, SHARDS, append_jsonl, check_record, read_shard_entries,
+                                      remove_orphans, scan_shards, write_index, write_shard)
 from processing.errors import DatasetFormatError, InputError
 from rtchannel.dataset.plan import Plan, WorkItem, expand
 
@@ -119,7 +119,7 @@ def run_batch(items: list[WorkItem], out: str, plan_digest: str, retries: int, d
     for it in items:
         for attempt in range(retries + 1):
             try:
-                records.append(run_item(it))
+                records.append(check_record(run_item(it)))  # an empty or NaN signature is an item failure
                 break
             except Exception as exc:  # noqa: BLE001 - recorded per item, the run goes on
                 if attempt == retries:
