@@ -41,6 +41,7 @@ ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")  # class order = label ind
 SHARD_FORMAT = "rtchannel-dataset-shard/1"
 SIGNATURE_ARRAYS = ("p_vt", "velocity", "time", "mean_velocity", "range_distribution", "range", "valid", "power")
 INDEX, ERRORS, PLAN, SHARDS = "index.jsonl", "errors.jsonl", "plan.json", "shards"
+MAX_ARRAY_BYTES = 1 << 30  # one stored array; a p_vt of a 1 h item is ~60 MB: larger means corrupt metadata
 ENTRY_KEYS = {"item_id": str, "shard": str, "links": list, "label": int, "sha256": dict}  # what readers rely on
 _SHARD_NAME = re.compile(r"^[A-Za-z0-9_.\-]+\.h5$")  # a plain file name inside shards/ (no path)
 
@@ -138,6 +139,8 @@ def _verified(g, entry: dict) -> bool:
         if set(links) != set(entry["sha256"]) or set(links) != set(g):
             return False
         for link in links:
+            if any(g[link][k].nbytes > MAX_ARRAY_BYTES for k in g[link]):  # corrupt dims must not allocate
+                return False
             arrays = {k: g[link][k][()] for k in g[link] if k != "iq"}
             if checksum(arrays) != entry["sha256"][link]:
                 return False
@@ -322,6 +325,8 @@ class DatasetReader:
         try:
             with h5py.File(self.shard_path(i), "r") as f:
                 g = f[e["item_id"]]
+                if any(g[n][k].nbytes > MAX_ARRAY_BYTES for n in names for k in g[n]):
+                    raise OSError("an array is larger than any valid one (corrupt metadata)")
                 return {n: {k: g[n][k][()] for k in g[n]} for n in names}
         except (OSError, KeyError) as exc:
             raise DatasetFormatError(f"{self.shard_path(i)}: item {e['item_id'][:60]!r} cannot be read "

@@ -330,3 +330,18 @@ def test_training_defaults_to_one_pinned_thread(monkeypatch):
     for bad in (dict(lr=float("inf")), dict(lr=10.0), dict(seed=2**40), dict(epochs=10**9)):
         with pytest.raises(Exception, match="lr|seed|epochs"):
             TrainConfig(**bad)
+
+
+def test_checkpoint_unpacking_to_more_than_the_limit_is_refused_unread(tmp_path):
+    """A zip member whose declared size exceeds the limit (a deflate bomb) is refused from the directory."""
+    import zipfile
+    from processing.errors import CheckpointError
+    p = tmp_path / "bomb.pt"
+    with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED) as z:
+        with z.open("archive/data/0", "w", force_zip64=True) as f:
+            block = bytes(1 << 20)
+            for _ in range(1100):  # 1.1 GiB of zeros, ~1 MB compressed
+                f.write(block)
+    assert p.stat().st_size < 5 << 20
+    with pytest.raises(CheckpointError, match=r"bomb\.pt: 1100 MiB is larger than any valid checkpoint"):
+        load_checkpoint(p)

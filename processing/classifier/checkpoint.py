@@ -11,6 +11,7 @@ freshly built network.
 """
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import torch
@@ -102,6 +103,9 @@ def load_checkpoint(path: str | Path):
         raise FileNotFoundError(f"model file not found: {path}")
     try:
         size = path.stat().st_size
+        if zipfile.is_zipfile(path):  # torch's format: a compressed member could unpack to anything
+            with zipfile.ZipFile(path) as z:
+                size = max(size, sum(info.file_size for info in z.infolist()))
         if size > MAX_CHECKPOINT_BYTES:
             raise CheckpointError(f"{path}: {size / 2**20:.0f} MiB is larger than any valid checkpoint "
                                   f"({MAX_CHECKPOINT_BYTES >> 20} MiB)")
