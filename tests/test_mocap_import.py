@@ -357,3 +357,10 @@ def test_c3d_absurd_values_and_wrong_units(tmp_path):
                        r"POINT:UNITS 'm'"):
         load_motion(p2)
     assert load_motion(p2, units="mm").n_frames > 100  # the override fixes it
+
+
+def test_bvh_with_millions_of_short_lines_is_refused_before_splitting(tmp_path):
+    p = tmp_path / "many.bvh"
+    p.write_text("HIERARCHY\n" + "1\n" * 500_000)
+    with pytest.raises(MotionImportError, match=r"many\.bvh: more than 410000 lines"):
+        load_motion(p)

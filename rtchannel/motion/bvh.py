@@ -27,6 +27,7 @@ END = "/End"  # suffix naming a joint's End Site point
 MAX_BVH_BYTES = 1 << 30  # text; ~10 bytes per value, so MAX_VALUES of text is ~0.5 GB
 MAX_VALUES = 50_000_000  # frames x channels: 400 MB as float64 (e.g. 2.3 h of the 96-channel CMU rig at 60 Hz)
 MAX_JOINTS = 1000  # the largest rigs (iClone CC with fingers and face) have ~250 joints
+MAX_LINES = 2 * MAX_SOURCE_FRAMES + 10 * MAX_JOINTS  # data rows, hierarchy and some blank lines
 MAX_OFFSET = 1e6  # |OFFSET| in file units: 10 km in mm; larger is a corrupted number
 _CHANNELS = {f"{a}{k}": f"{a.upper()}{k}" for a in "xyzXYZ" for k in ("position", "rotation")}
 
@@ -222,6 +223,10 @@ def read_bvh_raw(path) -> dict:
         text = path.read_bytes().decode("utf-8-sig", errors="replace")  # a byte-order mark is allowed
     except OSError as exc:
         raise MotionImportError(path, f"cannot read file: {exc.strerror or exc}") from None
+    n_lines = max(text.count("\n"), text.count("\r")) + 1  # counted before splitting: a line costs ~60 B
+    if n_lines > MAX_LINES:
+        raise MotionImportError(path, f"more than {MAX_LINES} lines: not a motion take (the frame limit is "
+                                f"{MAX_SOURCE_FRAMES})")
     lines = text.splitlines()
     if not lines or lines[0].split()[:1] != ["HIERARCHY"]:
         raise MotionImportError(path, "not a BVH file (first line must be HIERARCHY)", line=1)
