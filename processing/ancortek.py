@@ -24,12 +24,24 @@ from pathlib import Path
 
 import numpy as np
 
+from processing.atomic import atomic_path
+from processing.errors import InputError
 from processing.waveform import Waveform
 
 _SPACE = re.compile(r"\s+")
+# Limits (docs/validation.md), each with its reason:
+CARRIER_RANGE_HZ = (1e8, 3e11)  # FMCW kits: 5.8, 9.7, 24, 25, 77 GHz; outside 0.1-300 GHz is a corrupt header
+SWEEP_RANGE_S = (1e-6, 1.0)  # chirp repetition: microseconds to a second
+SAMPLES_RANGE = (2, 65536)  # samples per sweep (the kits write 64..1024)
+BANDWIDTH_RANGE_HZ = (1e5, 1e11)  # 0.1 MHz .. 100 GHz sweep
+MAX_ABS_SAMPLE = 1e12  # |re|, |im|: ADC values are < 1e6; this keeps |FFT|^2 of 4096-sample chirps finite in float32
+MAX_DAT_BYTES = 4 << 30  # ~130 M samples (~17 min of 128-sample 1-ms sweeps); the IQ needs ~0.27x the text
+MAX_CHANNELS = 8
+_BLOCK = 65536  # samples parsed per block (bounded transient memory: ~2 MB of Python objects)
+_STRIP = str.maketrans({" ": None, "\t": None, "\r": None, "\n": None, "\f": None, "\v": None})
 
 
-class AncortekFormatError(ValueError):
+class AncortekFormatError(InputError):
     """A `.dat` file that is truncated or malformed; the message names the file and line."""
 
 
@@ -49,50 +61,130 @@ class Recording:
 
 
 def _parse_complex(text: str, path: Path, line_no: int) -> complex:
-    s = _SPACE.sub("", text).replace("i", "j").replace("I", "j").replace("J", "j")
+    s = text.translate(_STRIP)
+    if s[-1:] in ("i", "I", "J"):  # the vendor's imaginary unit (only as the last character: "inf" stays)
+        s = s[:-1] + "j"
     try:
         return complex(s)
     except ValueError:
         raise AncortekFormatError(f"{path}: line {line_no}: not a complex sample: {text.strip()[:40]!r}") from None
 
 
+def _count_lines(path: Path) -> int:
+    """Upper bound on the text lines of `path` (CRLF, LF or CR line ends), read in 4 MB chunks."""
+    lf = cr = 0
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 22):
+            lf += chunk.count(b"\n")
+            cr += chunk.count(b"\r")
+    return max(lf, cr) + 1
+
+
+def _check_block(path: Path, block: np.ndarray, lines: np.ndarray) -> None:
+    """AncortekFormatError naming the first line whose sample is non-finite or beyond MAX_ABS_SAMPLE."""
+    with np.errstate(invalid="ignore"):
+        bad = ~((np.abs(block.real) <= MAX_ABS_SAMPLE) & (np.abs(block.imag) <= MAX_ABS_SAMPLE))
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise AncortekFormatError(f"{path}: line {int(lines[k])}: sample {block[k]} is not finite or beyond "
+                                  f"+-{MAX_ABS_SAMPLE:g} (corrupted data)")
+
+
+def _read_samples(path: Path, f, first_line: int, capacity: int) -> np.ndarray:
+    """Samples after the header as complex64 [n], parsed block by block from the open text file `f`
+    (memory: the output plus one block; no Python object per sample is kept)."""
+    out = np.empty(max(capacity, 0), np.complex64)
+    n = 0
+    vals: list[complex] = []
+    nums: list[int] = []
+    for no, ln in enumerate(f, first_line):
+        if ln.isspace() or not ln:
+            continue
+        vals.append(_parse_complex(ln, path, no))
+        nums.append(no)
+        if len(vals) == _BLOCK:
+            n = _flush(path, out, n, vals, nums)
+    return out[:_flush(path, out, n, vals, nums)]
+
+
+def _flush(path: Path, out: np.ndarray, n: int, vals: list, nums: list) -> int:
+    if vals:
+        block = np.array(vals, np.complex128)
+        _check_block(path, block, np.asarray(nums))
+        if n + len(vals) > out.size:  # mixed line ends beat the estimate: grow (never happens with CRLF/LF)
+            out.resize(max(2 * out.size, n + len(vals)), refcheck=False)
+        out[n:n + len(vals)] = block
+        n += len(vals)
+        vals.clear()
+        nums.clear()
+    return n
+
+
+def _in(value: float, lo: float, hi: float) -> bool:
+    return lo <= value <= hi  # False for nan
+
+
 def read_dat(path: str | Path, n_channels: int = 1, conjugate: bool = False, allow_partial: bool = False,
              max_range_m: float = 10.0) -> Recording:
     """Read an Ancortek `.dat` recording.
 
+    Streams the file: peak memory is about the complex64 IQ (~0.27x the text) plus a 65536-sample block.
+
     Args:
         path: the text file.
-        n_channels: interleaved receive channels in the file (1 or 2 for the common kits).
+        n_channels: interleaved receive channels in the file (1 or 2 for the common kits; at most 8).
         conjugate: conjugate the samples (opposite I/Q convention).
         allow_partial: drop an incomplete last sweep instead of raising.
         max_range_m: the `Waveform.max_range_m` to attach (clipped to the unambiguous range) [m].
 
     Raises:
-        AncortekFormatError: missing/invalid header, malformed sample, or (unless `allow_partial`) a
-            sample count that is not a whole number of sweeps.
+        AncortekFormatError: unreadable file, missing/invalid header, malformed, non-finite or absurd
+            sample (message names file and line), or (unless `allow_partial`) a sample count that is not
+            a whole number of sweeps.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"recording not found: {path}")
-    lines = [(k + 1, ln) for k, ln in enumerate(path.read_text(errors="replace").splitlines()) if ln.strip()]
-    if len(lines) < 4:
-        raise AncortekFormatError(f"{path}: header needs 4 lines (carrier, sweep time, samples per sweep, "
-                                  f"bandwidth), found {len(lines)}")
-    head = []
-    for (no, text), what in zip(lines[:4], ("carrier frequency", "sweep time", "samples per sweep", "bandwidth")):
-        try:
-            head.append(float(_SPACE.sub("", text)))
-        except ValueError:
-            raise AncortekFormatError(f"{path}: line {no}: {what} is not a number: {text.strip()[:40]!r}") from None
-    fc, sweep_ms, n_samp, bw = head
-    if not (fc > 0 and sweep_ms > 0 and bw > 0 and n_samp >= 1 and float(n_samp).is_integer()):
-        raise AncortekFormatError(f"{path}: implausible header {head} (need positive carrier, sweep time, "
-                                  "bandwidth and an integer sample count)")
-    fc_hz = fc * 1e9 if fc < 1e3 else fc
-    bw_hz = bw * 1e6 if bw < 1e5 else bw
+    if isinstance(n_channels, bool) or not isinstance(n_channels, (int, np.integer)) or not 1 <= n_channels <= MAX_CHANNELS:
+        raise AncortekFormatError(f"{path}: n_channels must be an integer 1..{MAX_CHANNELS}, got {n_channels!r}")
+    if not (isinstance(max_range_m, (int, float)) and max_range_m > 0 and np.isfinite(max_range_m)):
+        raise AncortekFormatError(f"{path}: max_range_m must be a positive finite distance, got {max_range_m!r}")
+    try:
+        size = path.stat().st_size
+        if size > MAX_DAT_BYTES:
+            raise AncortekFormatError(f"{path}: file of {size / 2**30:.1f} GiB exceeds the {MAX_DAT_BYTES >> 30} GiB limit")
+        capacity = _count_lines(path)
+        with open(path, encoding="ascii", errors="replace", newline=None) as f:
+            head, no = [], 0
+            for no, ln in enumerate(f, 1):
+                if ln.strip():
+                    head.append((no, ln))
+                    if len(head) == 4:
+                        break
+            if len(head) < 4:
+                raise AncortekFormatError(f"{path}: header needs 4 lines (carrier, sweep time, samples per sweep, "
+                                          f"bandwidth), found {len(head)}")
+            values = []
+            for (hno, text), what in zip(head, ("carrier frequency", "sweep time", "samples per sweep", "bandwidth")):
+                try:
+                    values.append(float(_SPACE.sub("", text)))
+                except ValueError:
+                    raise AncortekFormatError(f"{path}: line {hno}: {what} is not a number: "
+                                              f"{text.strip()[:40]!r}") from None
+            fc, sweep_ms, n_samp, bw = values
+            fc_hz = fc * 1e9 if fc < 1e3 else fc
+            bw_hz = bw * 1e6 if bw < 1e5 else bw
+            pri = sweep_ms * 1e-3
+            checks = ((fc_hz, CARRIER_RANGE_HZ, "carrier frequency [Hz]", 1), (pri, SWEEP_RANGE_S, "sweep time [s]", 2),
+                      (n_samp, SAMPLES_RANGE, "samples per sweep", 3), (bw_hz, BANDWIDTH_RANGE_HZ, "bandwidth [Hz]", 4))
+            for value, (lo, hi), what, k in checks:
+                if not _in(value, lo, hi) or (k == 3 and not float(n_samp).is_integer()):
+                    raise AncortekFormatError(f"{path}: line {head[k - 1][0]}: implausible header: {what} {value:g} "
+                                              f"(need {'an integer ' if k == 3 else ''}{lo:g}..{hi:g})")
+            samples = _read_samples(path, f, no + 1, capacity - no)
+    except OSError as exc:
+        raise AncortekFormatError(f"{path}: cannot read file: {exc.strerror or exc}") from None
     n = int(n_samp)
-    samples = np.fromiter((_parse_complex(t, path, no) for no, t in lines[4:]), np.complex128,
-                          count=len(lines) - 4)
     per_sweep = n * n_channels
     n_sweeps, rest = divmod(samples.size, per_sweep)
     if rest and not allow_partial:
@@ -102,16 +194,14 @@ def read_dat(path: str | Path, n_channels: int = 1, conjugate: bool = False, all
         raise AncortekFormatError(f"{path}: no complete sweep ({samples.size} samples, {per_sweep} per sweep)")
     samples = samples[:n_sweeps * per_sweep]
     if conjugate:
-        samples = samples.conj()
-    iq = [np.ascontiguousarray(samples[c::n_channels].reshape(n_sweeps, n), dtype=np.complex64)
-          for c in range(n_channels)]
-    pri = sweep_ms * 1e-3
+        np.conjugate(samples, out=samples)
+    iq = [np.ascontiguousarray(samples[c::n_channels].reshape(n_sweeps, n)) for c in range(n_channels)]
     try:
         probe = Waveform(carrier_hz=fc_hz, bandwidth_hz=bw_hz, pri_s=pri, samples_per_chirp=n, max_range_m=1e-3)
     except ValueError as e:  # pydantic's ValidationError is a ValueError
         raise AncortekFormatError(f"{path}: header does not describe a valid FMCW waveform: "
                                   f"{str(e).splitlines()[-2].strip() if len(str(e).splitlines()) > 1 else e}") from None
-    wf = probe.model_copy(update={"max_range_m": min(max_range_m, 0.999 * probe.max_unambiguous_range)})
+    wf = Waveform(**{**probe.model_dump(), "max_range_m": min(max_range_m, 0.999 * probe.max_unambiguous_range)})
     header = {"carrier_hz": fc_hz, "sweep_s": pri, "samples_per_sweep": n, "bandwidth_hz": bw_hz,
               "n_channels": n_channels, "n_sweeps": n_sweeps, "dropped_samples": int(rest)}
     return Recording(path=path, waveform=wf, iq=iq, header=header)
@@ -136,9 +226,8 @@ def write_dat(path: str | Path, iq, wf: Waveform, digits: int = 9) -> Path:
     im_s = np.char.mod("%+." + str(digits - 1) + "e", flat.imag.astype(np.float64))
     body = np.char.add(np.char.add(re_s, im_s), "i")
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     head = [repr(wf.carrier_hz / 1e9), repr(wf.pri_s * 1e3), str(wf.samples_per_chirp), repr(wf.bandwidth_hz / 1e6)]
-    with open(path, "w") as f:
+    with atomic_path(path) as tmp, open(tmp, "w") as f:
         f.write("\n".join(head) + "\n")
         f.write("\n".join(body.tolist()) + "\n")
     return path

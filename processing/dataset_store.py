@@ -11,8 +11,14 @@ Folder layout::
                            which are the source of truth)
     DIR/errors.jsonl       items that kept failing: item_id, activity, error
 
-A shard is written to a temporary name and renamed, so a shard either exists complete or not at all.
-Each entry carries `sha256` {link: checksum of its stored arrays} to compare datasets bit for bit.
+A shard is written to a temporary name, fsynced and renamed, so a shard either exists complete or not at
+all. Each entry carries `sha256` {link: checksum of its stored arrays}: datasets compare bit for bit, and
+a resumed run re-reads every shard and checks every array against it (`scan_shards(verify=True)`). A
+shard that cannot be read, is not a shard, or holds an array that fails its checksum is never deleted:
+it is renamed ``*.bad`` (`quarantine`), its verified items are copied into a new shard of the same name
+and the failed ones are computed again. Index lines are checked when read (`read_jsonl`): a malformed
+line other than a torn last one, or an entry without `item_id`, is a `DatasetFormatError` naming the
+file and line.
 This module is the lower layer: it never imports `rtchannel`.
 """
 from __future__ import annotations
@@ -20,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -27,12 +34,16 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from processing.atomic import temporary_sibling
+from processing.atomic import atomic_path, write_text_atomic
+from processing.errors import DatasetFormatError, InputError, one_line
 
 ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")  # class order = label index
 SHARD_FORMAT = "rtchannel-dataset-shard/1"
 SIGNATURE_ARRAYS = ("p_vt", "velocity", "time", "mean_velocity", "range_distribution", "range", "valid", "power")
 INDEX, ERRORS, PLAN, SHARDS = "index.jsonl", "errors.jsonl", "plan.json", "shards"
+MAX_ARRAY_BYTES = 1 << 30  # one stored array; a p_vt of a 1 h item is ~60 MB: larger means corrupt metadata
+ENTRY_KEYS = {"item_id": str, "shard": str, "links": list, "label": int, "sha256": dict}  # what readers rely on
+_SHARD_NAME = re.compile(r"^[A-Za-z0-9_.\-]+\.h5$")  # a plain file name inside shards/ (no path)
 
 
 def signature_arrays(sig) -> dict[str, np.ndarray]:
@@ -56,16 +67,19 @@ def checksum(arrays: dict[str, np.ndarray]) -> str:
 
 
 
-def write_text_atomic(path: Path, text: str) -> None:
-    """Write a text file atomically (temporary file in the same folder, then rename)."""
-    path = Path(path)
-    tmp = temporary_sibling(path)
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+def check_record(rec: dict) -> dict:
+    """`rec` unchanged if every link has at least one time bin and only finite arrays, else `InputError`
+    (an item whose motion is shorter than one DSP window, or a NaN from upstream, is never stored)."""
+    for link, arrays in rec["links"].items():
+        p_vt = np.asarray(arrays.get("p_vt"))
+        if p_vt.ndim != 2 or p_vt.shape[1] == 0:
+            raise InputError(f"item {rec['entry'].get('item_id')}: link {link}: no complete DSP window "
+                             "(motion shorter than window_chirps chirps)")
+        for key, a in arrays.items():
+            a = np.asarray(a)
+            if a.dtype.kind in "fc" and not np.isfinite(a).all():
+                raise InputError(f"item {rec['entry'].get('item_id')}: link {link}: {key} holds non-finite values")
+    return rec
 
 
 def write_shard(path: str | Path, records: Sequence[dict], attrs: dict | None = None) -> Path:
@@ -74,41 +88,90 @@ def write_shard(path: str | Path, records: Sequence[dict], attrs: dict | None = 
     Each entry gets ``sha256`` {link: checksum} and ``links`` [names] before it is stored.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temporary_sibling(path)
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = SHARD_FORMAT
-            for k, v in (attrs or {}).items():
-                f.attrs[k] = v
-            for rec in records:
-                entry = dict(rec["entry"])
-                g = f.create_group(entry["item_id"])
-                entry["links"] = list(rec["links"])
-                entry["sha256"] = {}
-                for link, arrays in rec["links"].items():
-                    lg = g.create_group(link)
-                    stored = {k: v for k, v in arrays.items() if k != "iq"}
-                    entry["sha256"][link] = checksum(stored)
-                    for key, a in arrays.items():
-                        big = a.ndim == 2
-                        lg.create_dataset(key, data=a, compression="gzip" if big else None,
-                                          compression_opts=1 if big else None, shuffle=big)
-                g.attrs["entry"] = json.dumps(entry, sort_keys=True, default=_json_default)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["format"] = SHARD_FORMAT
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        for rec in records:
+            entry = dict(rec["entry"])
+            g = f.create_group(entry["item_id"])
+            entry["links"] = list(rec["links"])
+            entry["sha256"] = {}
+            for link, arrays in rec["links"].items():
+                lg = g.create_group(link)
+                stored = {k: v for k, v in arrays.items() if k != "iq"}
+                entry["sha256"][link] = checksum(stored)
+                for key, a in arrays.items():
+                    big = a.ndim == 2
+                    lg.create_dataset(key, data=a, compression="gzip" if big else None,
+                                      compression_opts=1 if big else None, shuffle=big)
+            g.attrs["entry"] = json.dumps(entry, sort_keys=True, default=_json_default)
     return path
 
 
-def read_shard_entries(path: str | Path) -> list[dict]:
-    """Entries stored in one shard (each with "shard" set to the file name)."""
+def read_shard_entries(path: str | Path, verify: bool = False) -> tuple[list[dict], list[str]]:
+    """(entries stored in one shard, each with "shard" set to the file name; ids of entries that failed).
+
+    With `verify`, every stored array is read and compared with the entry's sha256 (an entry whose data
+    cannot be read or does not match is returned in the second list, not the first). Raises OSError,
+    KeyError or ValueError if the file is not a readable shard at all.
+    """
     path = Path(path)
+    good, failed = [], []
     with h5py.File(path, "r") as f:
         if f.attrs.get("format") != SHARD_FORMAT:
             raise OSError(f"{path.name}: not a dataset shard")
-        return [{**json.loads(g.attrs["entry"]), "shard": path.name} for g in f.values()]
+        for name, g in f.items():
+            entry = {**json.loads(g.attrs["entry"]), "shard": path.name}
+            if entry.get("item_id") != name or not isinstance(entry.get("sha256"), dict):
+                raise ValueError(f"{path.name}: group {name[:40]!r} holds an inconsistent entry")
+            if verify and not _verified(g, entry):
+                failed.append(name)
+            else:
+                good.append(entry)
+    return good, failed
+
+
+def _verified(g, entry: dict) -> bool:
+    """True if every link's stored arrays (iq excluded) read back and match the entry's sha256."""
+    try:
+        links = list(entry["links"])
+        if set(links) != set(entry["sha256"]) or set(links) != set(g):
+            return False
+        for link in links:
+            if any(g[link][k].nbytes > MAX_ARRAY_BYTES for k in g[link]):  # corrupt dims must not allocate
+                return False
+            arrays = {k: g[link][k][()] for k in g[link] if k != "iq"}
+            if checksum(arrays) != entry["sha256"][link]:
+                return False
+            if "iq" in g[link]:
+                g[link]["iq"][()]  # readable (iq carries no checksum: it is optional raw data)
+        return True
+    except (OSError, KeyError, ValueError, TypeError):  # h5py raises OSError for a corrupt chunk
+        return False
+
+
+def quarantine(path: str | Path) -> Path:
+    """Rename `path` to ``<name>.bad`` (or ``.bad.1``, ... if taken) and return the new path; never deletes."""
+    path = Path(path)
+    target, k = path.with_name(path.name + ".bad"), 0
+    while target.exists():
+        k += 1
+        target = path.with_name(f"{path.name}.bad.{k}")
+    os.replace(path, target)
+    return target
+
+
+def _salvage(path: Path, keep: list[str]) -> Path:
+    """Quarantine shard `path` and write its verified items `keep` into a new shard of the same name."""
+    bad = quarantine(path)
+    if keep:
+        with h5py.File(bad, "r") as src, atomic_path(path) as tmp, h5py.File(tmp, "w") as dst:
+            for k, v in src.attrs.items():
+                dst.attrs[k] = v
+            for name in keep:
+                src.copy(src[name], dst, name=name)
+    return bad
 
 
 def remove_orphans(root: str | Path) -> int:
@@ -120,21 +183,26 @@ def remove_orphans(root: str | Path) -> int:
     return n
 
 
-def scan_shards(root: str | Path, delete_bad: bool = False) -> tuple[list[dict], list[str]]:
-    """(entries of every readable shard, deduplicated and sorted by item_id, names of unreadable shards).
+def scan_shards(root: str | Path, verify: bool = False, repair: bool = False) -> tuple[list[dict], list[str]]:
+    """(entries of every readable shard, deduplicated and sorted by item_id; names of bad shards).
 
+    A shard is bad if it cannot be read as a shard or (with `verify`) holds an item whose arrays fail
+    their checksum; its verified entries are still returned. With `repair`, a bad shard is renamed
+    ``*.bad`` (never deleted) and, if some of its items verified, they are copied into a new shard of
+    the original name, so only the failed items are missing (and get computed again by the runner).
     An item found in two shards (never produced by the runner) is kept once, from the first shard by name.
     """
     seen: dict[str, dict] = {}
     bad = []
     for p in sorted((Path(root) / SHARDS).glob("*.h5")):
         try:
-            entries = read_shard_entries(p)
-        except (OSError, KeyError, ValueError):
+            entries, failed = read_shard_entries(p, verify=verify)
+        except (OSError, KeyError, ValueError, TypeError):
+            entries, failed = [], None
+        if failed is None or failed:
             bad.append(p.name)
-            if delete_bad:
-                p.unlink(missing_ok=True)
-            continue
+            if repair:
+                _salvage(p, [e["item_id"] for e in entries])
         for e in entries:
             seen.setdefault(e["item_id"], e)
     return [seen[k] for k in sorted(seen)], bad
@@ -156,17 +224,42 @@ def append_jsonl(path: str | Path, rows: Sequence[dict]) -> None:
         f.flush()
 
 
-def read_jsonl(path: str | Path) -> list[dict]:
-    """Rows of a JSON-lines file ([] if missing); a truncated last line (killed writer) is skipped."""
+def read_jsonl(path: str | Path, required: dict[str, type] | None = None) -> list[dict]:
+    """Rows of a JSON-lines file ([] if missing); a torn last line (killed writer) and blank lines are skipped.
+
+    Raises `DatasetFormatError` naming the file and line for any other line that is not a JSON object
+    or lacks one of the `required` keys {name: type}.
+    """
     p = Path(path)
     if not p.is_file():
         return []
+    try:
+        lines = p.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError as e:
+        raise DatasetFormatError(f"{p}: cannot read: {e.strerror or e}") from None
+    last = max((i for i, ln in enumerate(lines) if ln.strip()), default=-1)
     rows = []
-    for line in p.read_text().splitlines():
-        try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError:
+    for i, line in enumerate(lines):
+        if not line.strip():
             continue
+        try:
+            row = json.loads(line)
+        except (json.JSONDecodeError, RecursionError):
+            if i == last:
+                continue
+            raise DatasetFormatError(f"{p}: line {i + 1}: not valid JSON") from None
+        if not isinstance(row, dict):
+            raise DatasetFormatError(f"{p}: line {i + 1}: expected a JSON object, got {type(row).__name__}")
+        for key, typ in (required or {}).items():
+            v = row.get(key)
+            ok = isinstance(v, typ) and isinstance(v, bool) == (typ is bool)
+            if ok and typ is list:  # lists and maps of the index hold names (links) and checksums
+                ok = all(isinstance(x, str) for x in v)
+            elif ok and typ is dict:
+                ok = all(isinstance(k, str) and isinstance(x, str) for k, x in v.items())
+            if not ok:
+                raise DatasetFormatError(f"{p}: line {i + 1}: entry lacks a valid {key!r} ({typ.__name__})")
+        rows.append(row)
     return rows
 
 
@@ -185,13 +278,20 @@ class DatasetReader:
         if not self.root.is_dir():
             raise FileNotFoundError(f"dataset folder not found: {self.root}")
         if (self.root / INDEX).is_file():
-            by_id = {e["item_id"]: e for e in read_jsonl(self.root / INDEX)}
+            by_id = {e["item_id"]: e for e in read_jsonl(self.root / INDEX, ENTRY_KEYS)}
             self.entries = [by_id[k] for k in sorted(by_id)]
+            for e in self.entries:
+                if not _SHARD_NAME.match(e["shard"]):  # entries name files inside shards/ only
+                    raise DatasetFormatError(f"{self.root / INDEX}: item {e['item_id'][:60]!r}: shard "
+                                             f"{e['shard'][:60]!r} is not a file name in {SHARDS}/")
         elif (self.root / SHARDS).is_dir():
             self.entries, _ = scan_shards(self.root)
         else:
             raise FileNotFoundError(f"{self.root} holds no dataset (no {INDEX} and no {SHARDS}/)")
-        self.errors = read_jsonl(self.root / ERRORS)
+        try:
+            self.errors = read_jsonl(self.root / ERRORS)
+        except DatasetFormatError:
+            self.errors = []  # failures are informational: a damaged errors.jsonl must not block reading
 
     def __len__(self) -> int:
         return len(self.entries)
@@ -222,13 +322,22 @@ class DatasetReader:
         missing = [n for n in names if n not in e["links"]]
         if missing:
             raise KeyError(f"item {e['item_id']} has no link {missing[0]!r} (links: {', '.join(e['links'])})")
-        with h5py.File(self.shard_path(i), "r") as f:
-            g = f[e["item_id"]]
-            return {n: {k: g[n][k][()] for k in g[n]} for n in names}
+        try:
+            with h5py.File(self.shard_path(i), "r") as f:
+                g = f[e["item_id"]]
+                if any(g[n][k].nbytes > MAX_ARRAY_BYTES for n in names for k in g[n]):
+                    raise OSError("an array is larger than any valid one (corrupt metadata)")
+                return {n: {k: g[n][k][()] for k in g[n]} for n in names}
+        except (OSError, KeyError) as exc:
+            raise DatasetFormatError(f"{self.shard_path(i)}: item {e['item_id'][:60]!r} cannot be read "
+                                     f"({one_line(exc, 120)}); re-run the dataset command to repair") from None
 
     def verify(self, i: int) -> bool:
-        """True if the stored arrays of entry `i` match its recorded checksums."""
-        data = self.load(i)
+        """True if the stored arrays of entry `i` can be read and match its recorded checksums."""
+        try:
+            data = self.load(i)
+        except DatasetFormatError:
+            return False
         return all(checksum({k: v for k, v in a.items() if k != "iq"}) == self.entries[i]["sha256"][n]
                    for n, a in data.items())
 

@@ -3,6 +3,10 @@ total-variation distance between velocity distributions, mean-velocity RMSE.
 
 All take arrays from `processing.dsp.Signature` (or a stored `signature.h5`) of equal waveform and DSP
 settings; time axes of different lengths are compared over their common prefix (RMSE, TV) or warped (DTW).
+
+Determinism: every sum here is a numpy reduction (`sum`, `cumsum`, `mean`) or dtaidistance's C loop, whose
+order of additions is fixed by the array shape; no BLAS call (`@`, `dot`) is used, so results are the same
+bytes for any BLAS thread count or CPU kernel.
 """
 from __future__ import annotations
 

@@ -16,6 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from processing.atomic import savefig_atomic  # noqa: E402
 from processing.dsp import Signature  # noqa: E402
 
 DYNAMIC_RANGE_DB = 40.0
@@ -40,9 +41,7 @@ def _weighted(dist: np.ndarray, power: np.ndarray) -> np.ndarray:
 def _save(fig, path: Path, title: str) -> Path:
     if title:
         fig.suptitle(title)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    path = savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
 

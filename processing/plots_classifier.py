@@ -7,15 +7,16 @@ import numpy as np
 
 
 def save_figure(fig, path: str | Path, dpi: int = 120) -> Path:
-    """Lay out, write (creating the folder) and close a matplotlib figure; returns the path."""
+    """Lay out, write atomically (creating the folder) and close a matplotlib figure; returns the path."""
     import matplotlib.pyplot as plt
 
+    from processing.atomic import savefig_atomic
+
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path
+    try:
+        return savefig_atomic(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)
 
 
 def plot_history(history: dict, path: str | Path, best_epoch: int | None = None, title: str | None = None) -> Path:

@@ -17,15 +17,15 @@ map) still read: those fields keep their defaults (0, None).
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import fields
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from processing.atomic import temporary_sibling
+from processing.atomic import atomic_path
 from processing.dsp import Signature
+from processing.errors import InputError
 
 FORMAT_VERSION = "2"
 _ARRAYS = ("p_vt", "velocity", "time", "mean_velocity", "range_distribution", "range", "valid", "power",
@@ -36,33 +36,35 @@ _SCALARS = ("carrier_hz", "v_max")
 def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, activity: str, backend: str,
                          seed: int, direction_deg: float, config: dict, iq: dict[str, np.ndarray] | None = None,
                          link_attrs: dict[str, dict] | None = None) -> Path:
-    """Write `signatures` ({link: Signature}) to `path` atomically (temporary file, then rename)."""
+    """Write `signatures` ({link: Signature}) to `path` atomically (temporary file, fsync, rename).
+
+    Raises `InputError` for a signature without time bins and ValueError for non-finite arrays (a bug)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temporary_sibling(path)
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs.update(activity=activity, backend=backend, seed=int(seed), direction_deg=float(direction_deg),
-                           version=FORMAT_VERSION, config=json.dumps(config, sort_keys=True, default=str))
-            for name, sig in signatures.items():
-                g = f.create_group(name)
-                for key in _ARRAYS:
-                    if getattr(sig, key) is not None:
-                        g.create_dataset(key, data=np.asarray(getattr(sig, key)), compression="gzip",
-                                         compression_opts=4)
-                for key in _SCALARS:
-                    g.create_dataset(key, data=np.float64(getattr(sig, key)))
-                if sig.range_doppler is not None:
-                    g.create_dataset("range_doppler", data=np.asarray(sig.range_doppler, np.float32),
-                                     compression="gzip", compression_opts=4, shuffle=True)
-                if iq is not None and name in iq:
-                    g.create_dataset("iq", data=iq[name], compression="gzip", compression_opts=1)
-                for key, value in (link_attrs or {}).get(name, {}).items():
-                    g.attrs[key] = value
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    for name, sig in signatures.items():  # last guard: an empty or NaN signature is never written
+        if np.asarray(sig.p_vt).ndim != 2 or np.asarray(sig.p_vt).shape[1] == 0:
+            raise InputError(f"{path}: link {name}: no complete DSP window (the recording is shorter than "
+                             "window_chirps chirps); nothing written")
+        for key in _ARRAYS + (("range_doppler",) if sig.range_doppler is not None else ()):
+            value = getattr(sig, key)
+            if value is not None and not np.isfinite(np.asarray(value, dtype=float)).all():
+                raise ValueError(f"{path}: link {name}: {key} holds non-finite values; nothing written")
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs.update(activity=activity, backend=backend, seed=int(seed), direction_deg=float(direction_deg),
+                       version=FORMAT_VERSION, config=json.dumps(config, sort_keys=True, default=str))
+        for name, sig in signatures.items():
+            g = f.create_group(name)
+            for key in _ARRAYS:
+                if getattr(sig, key) is not None:
+                    g.create_dataset(key, data=np.asarray(getattr(sig, key)), compression="gzip", compression_opts=4)
+            for key in _SCALARS:
+                g.create_dataset(key, data=np.float64(getattr(sig, key)))
+            if sig.range_doppler is not None:
+                g.create_dataset("range_doppler", data=np.asarray(sig.range_doppler, np.float32),
+                                 compression="gzip", compression_opts=4, shuffle=True)
+            if iq is not None and name in iq:
+                g.create_dataset("iq", data=iq[name], compression="gzip", compression_opts=1)
+            for key, value in (link_attrs or {}).get(name, {}).items():
+                g.attrs[key] = value
     return path
 
 

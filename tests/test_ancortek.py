@@ -81,3 +81,43 @@ def test_partial_last_sweep_can_be_dropped(tmp_path):
     p.write_text("24.125\n0.5\n8\n250\n" + "1+1i\n" * 11)
     rec = read_dat(p, allow_partial=True)
     assert rec.iq[0].shape == (1, 8) and rec.header["dropped_samples"] == 3
+
+
+@pytest.mark.parametrize("sample, line", [("nan", 7), ("1e308+1i", 7), ("inf-2j", 7), ("1+nanj", 7), ("-1e13", 7)])
+def test_non_finite_or_absurd_samples_name_the_line(tmp_path, sample, line):
+    # a finite-but-huge sample would overflow |FFT|^2 in float32: refused like nan (limit 1e12)
+    p = tmp_path / "bad.dat"
+    p.write_text("24.125\n0.5\n2\n250\n1+1i\n1-1i\n" + sample + "\n0\n")
+    with pytest.raises(AncortekFormatError, match=rf"bad\.dat: line {line}: sample .* not finite or beyond"):
+        read_dat(p)
+
+
+@pytest.mark.parametrize("header, match", [
+    ("inf\n0.5\n8\n250\n", "line 1: implausible header: carrier"),
+    ("24.125\nnan\n8\n250\n", "line 2: implausible header: sweep time"),
+    ("24.125\n0.5\n1e9\n250\n", "line 3: implausible header: samples per sweep"),
+    ("24.125\n0.5\n8\n1e300\n", "line 4: implausible header: bandwidth"),
+])
+def test_header_bounds(tmp_path, header, match):
+    p = tmp_path / "h.dat"
+    p.write_text(header + "1+1i\n" * 8)
+    with pytest.raises(AncortekFormatError, match=match):
+        read_dat(p)
+
+
+def test_line_endings_and_channel_argument(tmp_path):
+    body = ["24.125", "0.5", "8", "250"] + [f"{k}+{k}i" for k in range(16)]
+    for name, sep in (("crlf.dat", "\r\n"), ("cr.dat", "\r"), ("lf.dat", "\n")):
+        p = tmp_path / name
+        p.write_bytes(sep.join(body).encode() + sep.encode())
+        rec = read_dat(p)
+        np.testing.assert_array_equal(rec.iq[0].ravel(), np.arange(16) * (1 + 1j))
+    with pytest.raises(AncortekFormatError, match="n_channels must be an integer 1..8"):
+        read_dat(tmp_path / "lf.dat", n_channels=0)
+
+
+def test_binary_garbage_is_a_format_error(tmp_path):
+    p = tmp_path / "garbage.dat"
+    p.write_bytes(b"24.125\n0.5\n2\n250\n\xff\xfe\x00\x01\n")
+    with pytest.raises(AncortekFormatError, match=r"line 5: not a complex sample"):
+        read_dat(p)

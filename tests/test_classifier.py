@@ -245,3 +245,103 @@ def test_active_time_mode_crops_idle_standing():
     assert moving.all()
     assert (whole[40] > 0.5).sum() == 10
     np.testing.assert_allclose(act, preprocess(p[:, 200:300], v, t[200:300], PreprocessConfig(n_time=50, time_mode="resample")))
+
+
+def _small_clf():
+    cfg = ModelConfig(input_size=(16, 16), padding="same", channels=(4, 4), mlp_hidden=8)
+    torch.manual_seed(0)
+    return Classifier(model=build_model(cfg), preprocess=PreprocessConfig(n_velocity=16, n_time=16),
+                      classes=list(ACTIVITIES), links=["radar1", "radar2"])
+
+
+def _tampered(tmp_path, edit):
+    path = save_checkpoint(tmp_path / "ok.pt", _small_clf())
+    blob = torch.load(path, weights_only=True)
+    edit(blob)
+    bad = tmp_path / "bad.pt"
+    torch.save(blob, bad)
+    return bad
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda b: b.pop("state_dict"), r"missing field 'state_dict'"),
+    (lambda b: b.update(classes="walk"), r"invalid field 'classes'"),
+    (lambda b: b["state_dict"].pop("mlp.0.weight"), r"state_dict lacks 'mlp.0.weight'"),
+    (lambda b: b["state_dict"].update({"extra.w": torch.zeros(1)}), r"state_dict has unexpected 'extra.w'"),
+    (lambda b: b["state_dict"].update({"mlp.0.weight": torch.zeros(3, 3)}), r"'mlp.0.weight' has shape \[3, 3\]"),
+    (lambda b: b["state_dict"]["mlp.0.bias"].fill_(float("nan")), r"'mlp.0.bias' holds non-finite values"),
+    (lambda b: b["model_config"].update(mlp_hidden=200_000_000), r"model_config.mlp_hidden: Input should be less"),
+    (lambda b: b["model_config"].update(mlp_hidden=60_000, channels=[64, 64]), r"model_config.\(root\): .*parameters"),
+    (lambda b: b["model_config"].update(input_size=[4096, 4096]), r"model_config.*MiB of activations"),
+    (lambda b: b["preprocess"].update(floor_db=float("inf")), r"preprocess.floor_db: Input should be a finite"),
+    (lambda b: b["preprocess"].update(n_time=32), r"preprocess makes 16 x 32 images but the network takes 16 x 16"),
+    (lambda b: b.update(links=["radar1"]), r"links has 1 names but the network has 2"),
+])
+def test_bad_checkpoints_are_one_line_errors_before_allocating(tmp_path, edit, message):
+    from processing.errors import CheckpointError
+    bad = _tampered(tmp_path, edit)
+    with pytest.raises(CheckpointError, match=message) as exc:
+        load_checkpoint(bad)
+    assert "\n" not in str(exc.value) and "bad.pt" in str(exc.value)
+
+
+def test_checkpoint_garbage_and_cli_exit_status(tmp_path, capsys):
+    from processing.errors import CheckpointError
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"\x80\x02not a zip")
+    with pytest.raises(CheckpointError, match="junk.pt is not a classifier checkpoint"):
+        load_checkpoint(junk)
+    bad = _tampered(tmp_path, lambda b: b["model_config"].update(mlp_hidden=2e8))
+    assert main(["evaluate", "--model", str(bad), "--recordings", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "mlp_hidden" in err[0]
+
+
+def test_diverging_training_raises_and_saves_nothing(tmp_path):
+    from processing.errors import TrainingError
+    rng = np.random.default_rng(1)
+    x = rng.random((40, 2, 16, 16), dtype=np.float32)
+    y = np.repeat(np.arange(5), 8)
+    mcfg = ModelConfig(input_size=(16, 16), padding="same", channels=(4, 4), mlp_hidden=8, batch_norm=False)
+    with pytest.raises(TrainingError, match="training diverged: the .*loss became (nan|inf)"):
+        # +-3.3e38 inputs: the first conv sums +inf and -inf (float32 overflow), the loss is nan
+        train(np.where(x > 0.5, 3.3e38, -3.3e38).astype(np.float32), y, mcfg, TrainConfig(epochs=3, lr=1.0, group_split=False, threads=1), progress=False, log=None)
+    x_nan = x.copy()
+    x_nan[3, 0, 2, 2] = np.nan
+    with pytest.raises(TrainingError, match="non-finite"):
+        train(x_nan, y, mcfg, TrainConfig(epochs=1, group_split=False, threads=1), progress=False, log=None)
+    clf = _small_clf()
+    with torch.no_grad():
+        clf.model.mlp[0].weight[0, 0] = float("inf")
+    from processing.errors import CheckpointError
+    with pytest.raises(CheckpointError, match="non-finite values; the model was not saved"):
+        save_checkpoint(tmp_path / "m.pt", clf)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_training_defaults_to_one_pinned_thread(monkeypatch):
+    """Weights depended on the thread count (1 vs 2 threads differ after one step) and the old default
+    picked it from the machine's load; the default is now pinned."""
+    import importlib
+    tr = importlib.import_module("processing.classifier.train")  # the package's `train` is the function
+    monkeypatch.setattr(tr, "auto_threads", lambda: 2)  # whatever the load says
+    tr.setup_torch(0)
+    assert torch.get_num_threads() == 1
+    for bad in (dict(lr=float("inf")), dict(lr=10.0), dict(seed=2**40), dict(epochs=10**9)):
+        with pytest.raises(Exception, match="lr|seed|epochs"):
+            TrainConfig(**bad)
+
+
+def test_checkpoint_unpacking_to_more_than_the_limit_is_refused_unread(tmp_path):
+    """A zip member whose declared size exceeds the limit (a deflate bomb) is refused from the directory."""
+    import zipfile
+    from processing.errors import CheckpointError
+    p = tmp_path / "bomb.pt"
+    with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED) as z:
+        with z.open("archive/data/0", "w", force_zip64=True) as f:
+            block = bytes(1 << 20)
+            for _ in range(1100):  # 1.1 GiB of zeros, ~1 MB compressed
+                f.write(block)
+    assert p.stat().st_size < 5 << 20
+    with pytest.raises(CheckpointError, match=r"bomb\.pt: 1100 MiB is larger than any valid checkpoint"):
+        load_checkpoint(p)

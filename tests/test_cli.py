@@ -115,3 +115,63 @@ def test_compare_accepts_comma_separated_backends(tmp_path):
     out = tmp_path / "cmp"
     assert main(["compare", "--backends", "points,points", "--activities", "fall", "--out", str(out), "--quiet"]) == 0
     assert (out / "dtw_points_vs_points.csv").is_file() and (out / "table_points_vs_points.md").is_file()
+
+
+# --- issue 13: every user-error type reaches the command line as one line and exit status 2
+def test_user_error_types_are_one_line_exit_2(tmp_path, capsys):
+    from rtchannel.errors import USER_ERRORS, ConfigError, SceneFileError
+    from processing.errors import CheckpointError, DatasetFormatError, InputError, TrainingError
+    from processing.ancortek import AncortekFormatError
+    from rtchannel.motion.errors import MotionImportError
+
+    for cls in (ConfigError, SceneFileError, CheckpointError, DatasetFormatError, TrainingError, AncortekFormatError):
+        assert issubclass(cls, InputError) and issubclass(cls, USER_ERRORS)
+    assert isinstance(MotionImportError("x.bvh", "bad", line=3), USER_ERRORS)
+    take = tmp_path / "take.bvh"
+    take.write_text((mocap_dir() / "sit" / "75_17.bvh").read_text().replace("Frame Time: 0.0333332", "Frame Time: 1e300", 1))
+    assert main(["simulate", "--motion-file", str(take), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    line = _one_error_line(capsys)
+    assert "take.bvh, line" in line and "frame time 1e300" in line
+
+
+def test_resampling_a_motion_file_to_an_absurd_rate_is_refused(tmp_path, capsys):
+    take = mocap_dir() / "sit" / "75_17.bvh"
+    assert main(["simulate", "--motion-file", str(take), "--fps", "1e6", "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "fps: " in _one_error_line(capsys)
+
+
+def test_output_path_under_a_file_is_one_line(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    args = ["simulate", "--activity", "fall", "--duration", "0.9", "--out", str(blocker / "out"), "--quiet", "--no-plots"]
+    assert main(args) == 2
+    assert str(blocker) in _one_error_line(capsys)
+
+
+def test_scene_outside_sandbox_is_one_line(tmp_path, capsys):
+    scene = tmp_path / "s.xml"
+    scene.write_text('<scene version="2.1.0"><include filename="/etc/passwd"/></scene>')
+    args = ["simulate", "--backend", "facets", "--scene", str(scene), "--activity", "fall", "--duration", "0.9",
+            "--out", str(tmp_path / "o"), "--quiet", "--no-plots"]
+    assert main(args) == 2
+    line = _one_error_line(capsys)
+    assert "points outside the scene's folder" in line and "root:" not in line
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["simulate", "--activity", "fall", "--seed", str(2**70)], "seed"),  # ProceduralParams: stored as int64
+    (["train", "--data", "nowhere", "--floor-db", "inf"], "floor_db"),  # PreprocessConfig: finite only
+])
+def test_fixed_argument_bounds(tmp_path, capsys, args, needle):
+    assert main([*args, "--out", str(tmp_path / "o")]) == 2
+    assert needle in _one_error_line(capsys)
+
+
+def test_recording_shorter_than_one_window_writes_nothing(tmp_path, capsys):
+    """Last guard (issue 13, 6): an empty signature is never written with exit 0."""
+    cfg = tmp_path / "radar.yaml"
+    cfg.write_text("dsp:\n  window_chirps: 4096\n")  # 2 s of chirps at 0.5 ms; the motion lasts ~1.3 s
+    args = ["simulate", "--activity", "fall", "--duration", "0.9", "--radar-config", str(cfg), "--out",
+            str(tmp_path / "o"), "--quiet", "--no-plots"]
+    assert main(args) == 2
+    assert "no complete DSP window" in _one_error_line(capsys) and not (tmp_path / "o" / "signature.h5").exists()

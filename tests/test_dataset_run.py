@@ -138,3 +138,41 @@ def test_bad_motion_file_is_reported_per_item_and_the_run_completes(tmp_path, ca
     assert main(args) == 1  # a re-run retries only the failed items and adds no duplicates
     assert len(DatasetReader(tmp_path / "ds")) == 4 and len(read_jsonl(tmp_path / "ds" / "errors.jsonl")) == 2
     assert json.loads((tmp_path / "ds" / "plan.json").read_text())["plan"]["name"] == "files"
+
+
+def test_resume_verifies_checksums_and_recomputes_corrupted_items(tmp_path, reference):
+    """Bytes flipped inside a stored p_vt chunk (issue 13): the re-run finds it, keeps the damaged shard as
+    *.bad, recomputes only the failed item and ends bit-identical to the reference; a foreign .h5 is renamed."""
+    import shutil
+
+    from test_dataset_store import flip_bytes_in_chunk
+
+    plan_file, ref = reference
+    out = tmp_path / "ds"
+    shutil.copytree(ref, out)
+    shard = sorted((out / "shards").glob("*.h5"))[2]
+    with h5py.File(shard, "r") as f:
+        victim = sorted(f)[1]
+    flip_bytes_in_chunk(shard, victim)
+    (out / "shards" / "foreign.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 100)  # not a readable HDF5 file
+    with pytest.warns(UserWarning, match="renamed to"):
+        s = run_plan(load_plan(plan_file), out, workers=1, progress=False)
+    assert sorted(s.quarantined) == sorted([shard.name, "foreign.h5"])
+    assert s.done_before == 23 and s.done_now == 1 and s.complete
+    assert (out / "shards" / (shard.name + ".bad")).is_file() and (out / "shards" / "foreign.h5.bad").is_file()
+    assert not (out / "shards" / "foreign.h5").exists()
+    assert _checksums(out) == _checksums(ref)
+    r = DatasetReader(out)
+    assert all(r.verify(i) for i in range(len(r)))
+    again = run_plan(load_plan(plan_file), out, workers=1, progress=False)
+    assert again.done_now == 0 and again.quarantined == []
+
+
+def test_unreadable_plan_json_is_one_line(tmp_path, reference, capsys):
+    plan_file, _ = reference
+    out = tmp_path / "ds"
+    out.mkdir()
+    (out / "plan.json").write_text("{torn")
+    assert main(["dataset", "--config", str(plan_file), "--out", str(out), "--workers", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "plan.json: unreadable" in err[0]

@@ -8,6 +8,7 @@ import pytest
 
 from processing.dataset_store import (ACTIVITIES, DatasetReader, checksum, read_jsonl, remove_orphans,
                                       scan_shards, write_index, write_shard)
+from processing.errors import DatasetFormatError
 from processing.dsp import DSPConfig, signatures
 from processing.signal_augment import add_clutter, add_noise, signal_power, static_clutter
 from processing.waveform import Waveform
@@ -71,8 +72,10 @@ def test_write_shard_is_atomic_and_failure_leaves_nothing(tmp_path, rng):
     (tmp_path / "shards" / "c.h5.123.tmp").write_bytes(b"partial")
     (tmp_path / "shards" / "junk.h5").write_bytes(b"not hdf5")
     assert remove_orphans(tmp_path) == 1
-    entries, badnames = scan_shards(tmp_path, delete_bad=True)
+    entries, badnames = scan_shards(tmp_path, repair=True)
+    # a foreign file is renamed, never deleted
     assert entries == [] and badnames == ["junk.h5"] and not (tmp_path / "shards" / "junk.h5").exists()
+    assert (tmp_path / "shards" / "junk.h5.bad").read_bytes() == b"not hdf5"
 
 
 def test_reader_tolerates_torn_index_and_duplicates(dataset):
@@ -136,3 +139,75 @@ def test_static_clutter_lands_in_its_range_bin_and_is_removed_by_dsp():
     np.testing.assert_allclose(dirty.p_vt, clean.p_vt, atol=1e-3)
     kept = signatures(cl, wf, DSPConfig(static_removal="none"))
     assert kept.p_vt[np.argmin(np.abs(kept.velocity)), 0] > 0.5  # without removal the clutter dominates v = 0
+
+
+def flip_bytes_in_chunk(shard, item_id, link="radar1", key="p_vt"):
+    """Overwrite 8 bytes in the middle of the (gzip) chunk of one stored array, as disk corruption would."""
+    with h5py.File(shard, "r") as f:
+        info = f[item_id][link][key].id.get_chunk_info(0)
+    with open(shard, "r+b") as fh:
+        fh.seek(info.byte_offset + info.size // 2)
+        fh.write(b"\xde\xad\xbe\xef\x01\x02\x03\x04")
+
+
+def test_verify_finds_corrupt_chunk_and_repair_keeps_the_rest(dataset):
+    root, recs = dataset
+    flip_bytes_in_chunk(root / "shards" / "a.h5", "walk-1")
+    entries, bad = scan_shards(root)  # without verify the damage is invisible
+    assert len(entries) == 6 and bad == []
+    entries, bad = scan_shards(root, verify=True, repair=True)
+    assert bad == ["a.h5"] and sorted(e["item_id"] for e in entries) == ["fall-0", "fall-1", "fall-2", "walk-0", "walk-2"]
+    assert (root / "shards" / "a.h5.bad").is_file()  # the damaged original is kept
+    with h5py.File(root / "shards" / "a.h5", "r") as f:  # the rewritten shard holds the 3 verified items
+        assert sorted(f) == ["fall-0", "walk-0", "walk-2"] and f.attrs["format"] == "rtchannel-dataset-shard/1"
+    entries2, bad2 = scan_shards(root, verify=True)
+    assert bad2 == [] and entries2 == entries
+
+
+@pytest.mark.parametrize("line, message", [
+    ('{"activity": "walk"}', r"index\.jsonl: line 3: entry lacks a valid 'item_id'"),
+    ('{"item_id": "x", "shard": "a.h5", "links": [], "label": "1", "sha256": {}}', r"line 3: entry lacks a valid 'label'"),
+    ("[1, 2]", r"line 3: expected a JSON object, got list"),
+    ("{not json", r"line 3: not valid JSON"),
+])
+def test_bad_index_lines_name_file_and_line(dataset, line, message):
+    root, _ = dataset
+    lines = (root / "index.jsonl").read_text().splitlines()
+    lines.insert(2, line)
+    (root / "index.jsonl").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetFormatError, match=message):
+        DatasetReader(root)
+
+
+def test_index_cannot_point_outside_the_shards_folder(dataset):
+    root, _ = dataset
+    rows = read_jsonl(root / "index.jsonl")
+    rows[0]["shard"] = "../../etc/passwd"
+    (root / "index.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    with pytest.raises(DatasetFormatError, match=r"shard '\.\./\.\./etc/passwd' is not a file name in shards/"):
+        DatasetReader(root)
+
+
+def test_reading_a_corrupt_item_is_a_one_line_error(dataset):
+    root, _ = dataset
+    flip_bytes_in_chunk(root / "shards" / "b.h5", "fall-1")
+    r = DatasetReader(root)
+    i = r.select(item_id="fall-1")[0]
+    assert not r.verify(i)
+    with pytest.raises(DatasetFormatError, match=r"b\.h5: item 'fall-1' cannot be read .*re-run the dataset command"):
+        r.load(i)
+
+
+def test_empty_or_nan_signatures_are_item_failures(rng):
+    """An item shorter than one DSP window (T = 0) or with a NaN is refused before it reaches a shard."""
+    from processing.dataset_store import check_record
+    from processing.errors import InputError
+    rec = _record("ok", "walk", 0.0, rng)
+    assert check_record(rec) is rec
+    empty = _record("short", "walk", 0.0, rng, t=0)
+    with pytest.raises(InputError, match="item short: link radar1: no complete DSP window"):
+        check_record(empty)
+    bad = _record("nan", "walk", 0.0, rng)
+    bad["links"]["radar2"]["mean_velocity"][3] = np.nan
+    with pytest.raises(InputError, match="item nan: link radar2: mean_velocity holds non-finite values"):
+        check_record(bad)

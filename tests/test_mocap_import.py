@@ -235,3 +235,132 @@ def test_sit_stand_take_sits_down_then_stands_up():
     k = (low[0] + low[-1]) // 2
     knee = m.positions[k, r.index("LeftLeg"), 2]
     assert abs(knee - hips[k]) < 0.15
+
+
+def _small_bvh(tmp_path):
+    """A short CMU-rig take written by `write_bvh` (units cm): its text and the MOTION line index."""
+    from test_skinning import smooth_motion
+    src = smooth_motion(np.arange(30) / 60.0, 1.75)
+    p = tmp_path / "small.bvh"
+    write_bvh(src, p, units="cm")
+    lines = p.read_text().splitlines()
+    return lines, lines.index("MOTION")
+
+
+def test_bvh_with_byte_order_mark_is_read(tmp_path):
+    lines, _ = _small_bvh(tmp_path)
+    plain = load_motion(tmp_path / "small.bvh", align=False, floor=False)
+    p = tmp_path / "bom.bvh"
+    p.write_bytes(b"\xef\xbb\xbf" + "\n".join(lines).encode() + b"\n")
+    m = load_motion(p, align=False, floor=False)
+    np.testing.assert_array_equal(m.positions, plain.positions)
+
+
+@pytest.mark.parametrize("edit, expect", [
+    # (line offset from MOTION, new text), message pattern naming the line
+    ((1, "Frames: 10"), r"line {f0_10}, frame 10: header says 10 frames but the file holds 30 data rows"),
+    ((1, "Frames: -5"), r"line {frames}: frame count -5 outside 1\.\."),
+    ((1, "Frames: 2.5"), r"line {frames}: frame count is not an integer"),
+    ((2, "Frame Time: 1e300"), r"line {ftime}: frame time 1e300 s outside 0\.0001\.\.1 s"),
+    ((2, "Frame Time: 1e-300"), r"line {ftime}: frame time 1e-300 s outside"),
+    ((2, "Frame Time: nan"), r"line {ftime}: frame time nan s outside"),
+    ((2, "Frame Time: 0.9"), r"line {frames}: 30 frames of 0\.9 s last 27 s|"),  # allowed: 27 s < 1 h
+])
+def test_bvh_motion_header_bounds(tmp_path, edit, expect):
+    lines, mo = _small_bvh(tmp_path)
+    k, text = edit
+    lines[mo + k] = text
+    p = tmp_path / "bad.bvh"
+    p.write_text("\n".join(lines) + "\n")
+    pattern = expect.format(frames=mo + 2, ftime=mo + 3, f0_10=mo + 4 + 10)
+    if pattern.endswith("|"):
+        assert load_motion(p, align=False, floor=False).n_frames == 30
+        return
+    with pytest.raises(MotionImportError, match=pattern):
+        load_motion(p)
+
+
+@pytest.mark.parametrize("col, value, what", [(0, "1e20", "Xposition = 1e\\+20 file units is beyond"),
+                                             (5, "1e20", "rotation = 1e\\+20 deg is beyond"),
+                                             (0, "5e5", "is 5e\\+03 m from the origin")])
+def test_bvh_absurd_values_mid_take(tmp_path, col, value, what):
+    lines, mo = _small_bvh(tmp_path)
+    row = lines[mo + 3 + 17].split()
+    row[col] = value
+    lines[mo + 3 + 17] = " ".join(row)
+    p = tmp_path / "big.bvh"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MotionImportError, match=rf"big\.bvh, line {mo + 21}, frame 17: .*{what}"):
+        load_motion(p)
+
+
+@pytest.mark.parametrize("old, new, expect", [
+    ("Zrotation Yrotation Xrotation", "Zrotation Yrotation Wrotation", "unknown channel 'Wrotation'"),
+    ("Zrotation Yrotation Xrotation", "Zrotation Zrotation Xrotation", "channel Zrotation listed twice"),
+    ("OFFSET", "OFFSET nan", "OFFSET of .* is not a number|OFFSET of .* is not finite"),
+    ("CHANNELS 3", "CHANNELS 9", "channel count of .* must be an integer 0..6"),
+])
+def test_bvh_hierarchy_errors(tmp_path, old, new, expect):
+    lines, _ = _small_bvh(tmp_path)
+    k = next(i for i, ln in enumerate(lines) if old in ln and i > 3)
+    lines[k] = lines[k].replace(old, new, 1)
+    p = tmp_path / "h.bvh"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MotionImportError, match=rf"h\.bvh, line \d+: (?:{expect})"):
+        load_motion(p)
+
+
+def test_motion_fps_and_argument_bounds(tmp_path):
+    from rtchannel.errors import ConfigError
+    _small_bvh(tmp_path)
+    p = tmp_path / "small.bvh"
+    for fps in (1e6, float("nan"), 0.0, float("inf")):
+        with pytest.raises(ConfigError, match="fps"):
+            load_motion(p, fps=fps)
+    with pytest.raises(ConfigError, match="units"):
+        load_motion(p, units=float("inf"))
+    with pytest.raises(ConfigError, match="up"):
+        load_motion(p, up="w")
+    m = load_motion(p)
+    with pytest.raises(ConfigError, match=r"fps: .* frames, more than 200000"):
+        m.resampled(1e6)  # the CLI's --fps on a motion file goes through Motion.resampled
+    with pytest.raises(ConfigError, match="fps: must be a positive finite"):
+        m.resampled(float("nan"))
+
+
+def _c3d_copy(path, edit):
+    import ezc3d
+    src = ezc3d.c3d(str(C3D_STAND))
+    pts = src["data"]["points"][:, :, :200].copy()
+    labels = list(src["parameters"]["POINT"]["LABELS"]["value"])
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [60.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = labels
+    units = edit(pts, labels)
+    c.add_parameter("POINT", "UNITS", [units])
+    c["data"]["points"] = pts
+    c.write(str(path))
+
+
+@needs_data
+def test_c3d_absurd_values_and_wrong_units(tmp_path):
+    def huge(pts, labels):
+        pts[:3, [lab.split(":")[-1] for lab in labels].index("LKNE"), 50] = 1e20
+        return "mm"
+    p = tmp_path / "huge.c3d"
+    _c3d_copy(p, huge)
+    with pytest.raises(MotionImportError, match=r"huge\.c3d, frame 50: LKNE is 1e\+17 m from the origin"):
+        load_motion(p)
+    p2 = tmp_path / "units.c3d"
+    _c3d_copy(p2, lambda pts, labels: "m")  # data in mm, POINT:UNITS says m
+    with pytest.raises(MotionImportError, match=r"units\.c3d: hip-to-ankle marker distance is .* with the file's "
+                       r"POINT:UNITS 'm'"):
+        load_motion(p2)
+    assert load_motion(p2, units="mm").n_frames > 100  # the override fixes it
+
+
+def test_bvh_with_millions_of_short_lines_is_refused_before_splitting(tmp_path):
+    p = tmp_path / "many.bvh"
+    p.write_text("HIERARCHY\n" + "1\n" * 500_000)
+    with pytest.raises(MotionImportError, match=r"many\.bvh: more than 410000 lines"):
+        load_motion(p)

@@ -97,3 +97,96 @@ def test_user_scene_with_box(tmp_path):
     assert hit["hit"][0] and not hit["body"][0] and hit["t"][0] == pytest.approx(1.5, abs=1e-5)
     with pytest.raises(ValueError, match="neither"):
         RTScene(tmp_path / "missing.xml", f, v, 24.125e9)
+
+
+# --- scene-file sandbox (issue 13): no file outside the scene's folder is read, errors never echo content
+import shutil  # noqa: E402
+
+from rtchannel.errors import SceneFileError  # noqa: E402
+from rtchannel.scene.sandbox import check_scene_file, load_error_line  # noqa: E402
+
+ROOM = SCENES["room"].read_text()
+
+
+def _scene(tmp_path, extra: str, name="s.xml"):
+    d = tmp_path / "scene"
+    d.mkdir(exist_ok=True)
+    p = d / name
+    p.write_text(ROOM.replace("</scene>", extra + "\n</scene>"))
+    return p
+
+
+@pytest.fixture
+def secret(tmp_path):
+    s = tmp_path / "secret.txt"
+    s.write_text("TOP-SECRET first line\n")
+    return s
+
+
+@pytest.mark.parametrize("extra", [
+    '<include filename="{rel}"/>',
+    '<include filename="{abs}"/>',
+    '<shape type="ply" id="x"><string name="filename" value="{rel}"/></shape>',
+    '<shape type="obj" id="x" filename="{abs}"/>',
+    '<default name="f" value="{rel}"/><shape type="ply" id="x"><string name="filename" value="$f"/></shape>',
+    '<path value="{dir}"/>',
+    '<texture type="bitmap" id="t"><string name="image" value="../secret.txt"/></texture>',
+])
+def test_scene_cannot_reference_files_outside_its_folder(tmp_path, secret, extra):
+    p = _scene(tmp_path, extra.format(rel="../secret.txt", abs=str(secret), dir=str(secret.parent)))
+    with pytest.raises(SceneFileError, match=r"line \d+: .* points outside the scene's folder") as exc:
+        get_scene(p, "2k", 1.75, 24.125e9)
+    assert "TOP-SECRET" not in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_symlink_and_nested_include_escapes_are_refused(tmp_path, secret):
+    d = tmp_path / "scene"
+    d.mkdir()
+    (d / "mesh.ply").symlink_to(secret)
+    p = _scene(tmp_path, '<shape type="ply" id="x"><string name="filename" value="mesh.ply"/></shape>')
+    with pytest.raises(SceneFileError, match="points outside"):
+        check_scene_file(p)
+    (d / "inner.xml").write_text('<scene version="2.1.0"><include filename="../secret.txt"/></scene>')
+    p2 = _scene(tmp_path, '<include filename="inner.xml"/>', name="outer.xml")
+    with pytest.raises(SceneFileError, match=r"inner\.xml: line 1: include '\.\./secret\.txt' points outside"):
+        check_scene_file(p2)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("<scene><shape type='cube'></scene>", r"line 1, column \d+: malformed XML"),
+    ('<!DOCTYPE s [<!ENTITY a "aaaa">]><scene>&a;</scene>', "DTDs and entities are not allowed"),
+    ('<!DOCTYPE s SYSTEM "file:///etc/passwd"><scene/>', "DTDs and entities are not allowed"),
+    ("<mesh/>", r"not a Mitsuba scene file \(the root element is <mesh>"),
+    ('<scene><shape type="ply" id="x"><string name="filename" value="$nope"/></shape></scene>', r"\$nope has no <default>"),
+    ('<scene><shape type="ply" id="x"><string name="filename" value="missing.ply"/></shape></scene>', "does not exist"),
+    ('<scene><include filename="s.xml"/></scene>', "nested deeper than 8 or in a cycle"),
+])
+def test_malformed_scene_files_are_one_line(tmp_path, text, match):
+    d = tmp_path / "scene"
+    d.mkdir()
+    p = d / "s.xml"
+    p.write_text(text)
+    with pytest.raises(SceneFileError, match=match) as exc:
+        check_scene_file(p)
+    assert "\n" not in str(exc.value) and "aaaa" not in str(exc.value)
+
+
+def test_scene_may_use_its_folder_and_the_project_assets(tmp_path):
+    d = tmp_path / "scene"
+    d.mkdir()
+    shutil.copy(SCENES["room"], d / "base.xml")
+    p = _scene(tmp_path, '<include filename="base.xml"/>', name="with_include.xml")
+    p.write_text(f'<scene version="2.1.0"><include filename="base.xml"/><include filename="{SCENES["free_space"]}"/></scene>')
+    check_scene_file(p)  # own folder and scenes/: allowed
+    for name in SCENES.values():
+        check_scene_file(name)
+
+
+def test_mitsuba_load_error_is_one_line_without_quoted_content(tmp_path):
+    p = _scene(tmp_path, '<shape type="no_such_plugin" id="x"/>')
+    with pytest.raises(SceneFileError) as exc:
+        get_scene(p, "2k", 1.75, 24.125e9)
+    msg = str(exc.value)
+    assert "\n" not in msg and "could not load the scene" in msg and "no_such_plugin" not in msg
+    assert load_error_line("x.xml", RuntimeError('Error at line 3, col 7: bad "secret text"')) == \
+        "x.xml: the ray tracer could not load the scene (line 3, column 7): RuntimeError: Error at line 3, col 7: bad ..."

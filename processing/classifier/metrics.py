@@ -9,10 +9,13 @@ averages the per-class F1 over the classes present in y_true or y_pred (scikit-l
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from processing.atomic import write_text_atomic
 
 
 def confusion_matrix(y_true, y_pred, n_classes: int) -> np.ndarray:
@@ -79,15 +82,13 @@ def classification_report(y_true, y_pred, classes) -> Report:
 
 def write_confusion_csv(report: Report, path: str | Path) -> Path:
     """The seed's layout as CSV: counts, a `recall` column, a `precision` row, accuracy in the corner."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["true \\ predicted", *report.classes, "recall"])
-        for i, c in enumerate(report.classes):
-            w.writerow([c, *report.confusion[i].tolist(), f"{report.recall[i]:.6f}"])
-        w.writerow(["precision", *[f"{p:.6f}" for p in report.precision], f"{report.accuracy:.6f}"])
-    return path
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(["true \\ predicted", *report.classes, "recall"])
+    for i, c in enumerate(report.classes):
+        w.writerow([c, *report.confusion[i].tolist(), f"{report.recall[i]:.6f}"])
+    w.writerow(["precision", *[f"{p:.6f}" for p in report.precision], f"{report.accuracy:.6f}"])
+    return write_text_atomic(path, buf.getvalue())
 
 
 def plot_confusion(report: Report, path: str | Path, title: str | None = None) -> Path:

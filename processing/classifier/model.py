@@ -14,31 +14,67 @@ Options (one code path): `n_branches` 1 (single radar) or 2+; `fusion` concat (s
 """
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import torch
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from torch import nn
+
+# Size limits, checked from the configuration before anything is allocated (a checkpoint may ask for anything):
+MAX_PARAMETERS = 50_000_000  # 200 MB of float32 weights, ~0.8 GB with Adam's state and gradients
+MAX_ACTIVATION_BYTES = 256 * 2**20  # forward activations of one sample (the seed's 256 x 256 input needs ~0.1 GB)
 
 
 class ModelConfig(BaseModel):
     """Architecture of the multiperspective DCNN; saved inside checkpoints."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    n_classes: int = Field(5, ge=2)
+    n_classes: int = Field(5, ge=2, le=1000)
     n_branches: int = Field(2, ge=1, le=8, description="radars (one FEN each)")
-    input_size: tuple[int, int] = Field((64, 64), description="(n_velocity, n_time) of each input image")
-    channels: tuple[int, ...] = Field((64, 72, 80, 96), description="kernels per conv layer (seed)")
+    input_size: tuple[Annotated[int, Field(ge=8, le=4096)], Annotated[int, Field(ge=8, le=4096)]] = Field(
+        (64, 64), description="(n_velocity, n_time) of each input image (as PreprocessConfig's bounds)")
+    channels: tuple[Annotated[int, Field(ge=1, le=1024)], ...] = Field(
+        (64, 72, 80, 96), min_length=1, max_length=8, description="kernels per conv layer (seed)")
     kernel_size: int = Field(3, ge=2, le=7, description="k of the k x k kernels (seed: 3 or 4)")
     padding: Literal["same", "valid"] = "valid"
     fen_dropout: float = Field(0.10, ge=0, lt=1)
     mlp_dropout: float = Field(0.15, ge=0, lt=1)
-    mlp_hidden: int = Field(128, ge=4)
+    mlp_hidden: int = Field(128, ge=4, le=65536)
     fusion: Literal["concat", "sum", "max", "mean"] = "concat"
     shared_weights: bool = False
     batch_norm: bool = Field(True, description="BatchNorm after each conv (not in the seed's text; "
                              "makes training converge in a few epochs instead of tens)")
+
+    @model_validator(mode="after")
+    def _sizes(self) -> "ModelConfig":
+        """Feature-map sizes, parameter count and activation memory from the numbers alone (no allocation)."""
+        h, w = self.input_size
+        c_in, params, act = 1, 0, 0
+        for c in self.channels:
+            if self.padding == "valid":
+                h, w = h - self.kernel_size + 1, w - self.kernel_size + 1
+            if min(h, w) < 2:
+                raise ValueError(f"input {self.input_size} is too small for {len(self.channels)} '{self.padding}' "
+                                 f"{self.kernel_size}x{self.kernel_size} conv/pool layers (use padding 'same' or a "
+                                 "larger input)")
+            params += c_in * c * self.kernel_size ** 2 + c + (2 * c if self.batch_norm else 0)
+            act += 3 * c * h * w * 4  # conv (+ BatchNorm) output and the pooled map, float32
+            h, w, c_in = h // 2, w // 2, c
+        params *= 1 if self.shared_weights else self.n_branches
+        feats = c_in * h * w * (self.n_branches if self.fusion == "concat" else 1)
+        params += feats * self.mlp_hidden + self.mlp_hidden + self.mlp_hidden * self.n_classes + self.n_classes
+        if act * self.n_branches > MAX_ACTIVATION_BYTES:
+            raise ValueError(f"one input sample would need {act * self.n_branches / 2**20:.0f} MiB of activations, "
+                             f"more than {MAX_ACTIVATION_BYTES >> 20} MiB (smaller input_size or channels)")
+        if params > MAX_PARAMETERS:
+            raise ValueError(f"the network would have {params:.3g} parameters, more than the limit of "
+                             f"{MAX_PARAMETERS:.3g} (smaller input_size, channels or mlp_hidden)")
+        return self
+
+    def n_parameters(self) -> int:
+        """Trainable parameters of the network this configuration builds (BatchNorm weights included)."""
+        return sum(p.numel() for p in build_model(self).parameters())
 
 
 class FEN(nn.Module):

@@ -30,23 +30,28 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from processing.errors import InputError
+
+MAX_WINDOW_BINS = 1_000_000  # time bins of a 'window' crop (16 ms bins: 4.4 h)
+
 
 class PreprocessConfig(BaseModel):
     """How p(v,t) [V, T] becomes a fixed [n_velocity, n_time] image (units: m/s, s, dB)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     n_velocity: int = Field(64, ge=8, le=1024, description="velocity bins of the network input")
     n_time: int = Field(64, ge=8, le=4096, description="time bins of the network input")
-    v_range_mps: float | None = Field(6.2, gt=0, description="input spans [-v, v] m/s; None: recorded bins")
+    v_range_mps: float | None = Field(6.2, gt=0, le=1000, description="input spans [-v, v] m/s; None: recorded bins")
     # "active" is the default: with "resample" a 14 s mocap walk that mostly stands still was called
     # "sit" (90.9 % on the mocap walks); with "active" 100 % (measured, see README)
     time_mode: Literal["resample", "window", "active"] = Field("active", description="how T becomes n_time")
     active_fraction: float = Field(0.1, gt=0, lt=1, description="time_mode='active': motion threshold re peak")
-    active_margin_s: float = Field(0.25, ge=0, description="time_mode='active': kept either side [s]")
-    window_s: float = Field(6.0, gt=0, description="time span of time_mode='window' [s]")
+    active_margin_s: float = Field(0.25, ge=0, le=600, description="time_mode='active': kept either side [s]")
+    # bounded like a motion (MAX_DURATION_S): the window is allocated as window_s / dt columns
+    window_s: float = Field(6.0, gt=0, le=3600, description="time span of time_mode='window' [s]")
     scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
-    floor_db: float = Field(40.0, gt=0, description="dynamic range kept by scale='db' [dB]")
+    floor_db: float = Field(40.0, gt=0, le=300, description="dynamic range kept by scale='db' [dB] (float64 spans ~300 dB)")
 
 
 def _rebin(x: np.ndarray, src_edges: np.ndarray, dst_edges: np.ndarray, axis: int) -> np.ndarray:
@@ -99,7 +104,10 @@ def _active_span(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfi
 def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig) -> np.ndarray:
     t = p_vt.shape[1]
     dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
-    n_win = max(1, int(round(cfg.window_s / dt)))
+    n_win = max(1, int(round(cfg.window_s / dt))) if dt > 0 else 0
+    if not 1 <= n_win <= MAX_WINDOW_BINS:  # a corrupt time axis (dt ~ 0 or negative) must not allocate
+        raise InputError(f"time_mode 'window': {cfg.window_s} s at a time step of {dt:g} s gives {n_win} bins "
+                         f"(limit 1..{MAX_WINDOW_BINS}): is the time axis valid?")
     power = p_vt.sum(axis=0)
     # centre on where the motion is: spread of the velocity distribution away from zero
     activity = _motion(p_vt) * power

@@ -2,47 +2,52 @@
 
 Determinism: `seed` drives numpy, torch's initialisation, the split and the batch order (a private
 `torch.Generator`), and `torch.use_deterministic_algorithms(True)` is set (free on CPU), so the same data,
-settings and seed give the same weights. Threads: `torch.set_num_threads(threads)`; by default 2 on an idle
-machine and 1 on a loaded one (the reference machine has two cores; oversubscribed OpenMP threads
-spin and ran 10x slower, see `auto_threads`).
+settings and seed give the same weights. Threads: `torch.set_num_threads(threads)`, pinned to
+`DEFAULT_THREADS` = 1 unless `threads` is given: torch's CPU kernels split their sums by thread, so
+1 and 2 threads give weights that differ after the first step (measured: different loss at epoch 1), and
+a thread count chosen from the machine's load (`auto_threads`, the old default) made the result
+depend on what else was running. An explicit `threads` is recorded in the checkpoint's train_config.
 
-Checkpoint (`torch.save` of plain dicts/tensors, loadable with `weights_only=True`): format version,
-model config, preprocessing config, class names, link names (branch order), state dict, training
-history, split indices and any extra metadata (dataset path, filters, timing).
+Training stops with `TrainingError` (nothing is returned or saved) when the inputs hold non-finite
+values or the loss becomes non-finite (a learning rate far too high, or broken data).
+
+Checkpoints: `processing.classifier.checkpoint` (re-exported here).
 """
 from __future__ import annotations
 
 import copy
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import torch
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
+from processing.classifier.checkpoint import CHECKPOINT_VERSION, load_checkpoint, save_checkpoint
 from processing.classifier.model import ModelConfig, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess_links
+from processing.errors import TrainingError, one_line
 
-CHECKPOINT_VERSION = 1
+DEFAULT_THREADS = 1  # pinned: results must not depend on the machine's load (see the module docstring)
 
 
 class TrainConfig(BaseModel):
     """Optimisation settings (Adam, cross-entropy, early stopping on validation loss)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    epochs: int = Field(40, ge=1, description="maximum epochs")
-    batch_size: int = Field(32, ge=1)
-    lr: float = Field(1e-3, gt=0, description="Adam learning rate")
-    weight_decay: float = Field(0.0, ge=0)
-    patience: int = Field(6, ge=1, description="epochs without validation-loss improvement before stopping")
-    min_delta: float = Field(1e-4, ge=0, description="improvement that resets the patience counter")
+    epochs: int = Field(40, ge=1, le=100_000, description="maximum epochs")
+    batch_size: int = Field(32, ge=1, le=65536)
+    lr: float = Field(1e-3, gt=0, le=1.0, description="Adam learning rate (Adam steps are ~lr per weight: "
+                      "above 1 it only diverges)")
+    weight_decay: float = Field(0.0, ge=0, le=1.0)
+    patience: int = Field(6, ge=1, le=100_000, description="epochs without validation-loss improvement before stopping")
+    min_delta: float = Field(1e-4, ge=0, le=10.0, description="improvement that resets the patience counter")
     val_fraction: float = Field(0.2, gt=0, lt=1, description="validation share (seed: 80:20)")
     group_split: bool = Field(True, description="keep all copies of one motion source on one side")
-    seed: int = Field(0, ge=0)
-    threads: int | None = Field(None, ge=1, description="torch CPU threads; None: auto (see setup_torch)")
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="random seed (scikit-learn's split takes 32 bits)")
+    threads: int | None = Field(None, ge=1, le=256, description="torch CPU threads; None: DEFAULT_THREADS (1)")
 
 
 def auto_threads() -> int:
@@ -58,8 +63,8 @@ def auto_threads() -> int:
 
 
 def setup_torch(seed: int, threads: int | None = None) -> None:
-    """Seed numpy/torch, cap CPU threads (None: `auto_threads`) and ask for deterministic kernels."""
-    torch.set_num_threads(threads or auto_threads())
+    """Seed numpy/torch, set CPU threads (None: `DEFAULT_THREADS`) and ask for deterministic kernels."""
+    torch.set_num_threads(threads or DEFAULT_THREADS)
     torch.manual_seed(seed)
     np.random.seed(seed % 2**32)
     torch.use_deterministic_algorithms(True)
@@ -146,10 +151,25 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     """
     from tqdm import tqdm
 
+    x = np.asarray(x)
+    y = np.asarray(y)
+    want = (model_cfg.n_branches, *model_cfg.input_size)
+    if x.ndim != 4 or x.shape[1:] != want or y.shape != (x.shape[0],):
+        raise TrainingError(f"training inputs must be X [N, {', '.join(map(str, want))}] with labels [N]; got X "
+                            f"{list(x.shape)}, labels {list(y.shape)}")
+    if x.shape[0] < 2:
+        raise TrainingError(f"training needs at least 2 samples, got {x.shape[0]}")
+    if not np.isfinite(x).all():
+        raise TrainingError("training inputs hold non-finite values")
+    if y.size and (y.min() < 0 or y.max() >= model_cfg.n_classes):
+        raise TrainingError(f"labels must lie in 0..{model_cfg.n_classes - 1}, got {y.min()}..{y.max()}")
     setup_torch(cfg.seed, cfg.threads)
     t_start = time.perf_counter()
-    tr, va = split if split is not None else split_indices(
-        y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)
+    try:
+        tr, va = split if split is not None else split_indices(
+            y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)
+    except ValueError as e:  # too few samples or groups for the requested split
+        raise TrainingError(f"cannot split the data: {one_line(e)}") from None
     xt, yt = torch.from_numpy(np.ascontiguousarray(x[tr])), torch.from_numpy(np.asarray(y)[tr])
     xv, yv = torch.from_numpy(np.ascontiguousarray(x[va])), torch.from_numpy(np.asarray(y)[va])
     model = build_model(model_cfg)
@@ -169,11 +189,17 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
             opt.zero_grad()
             out = model(xt[b])
             loss = loss_fn(out, yt[b])
+            if not torch.isfinite(loss.detach()):
+                raise TrainingError(f"training diverged: the loss became {float(loss.detach())} at epoch {epoch} "
+                                    f"(learning rate {cfg.lr:g}); lower --lr. Nothing was saved")
             loss.backward()
             opt.step()
             run_loss += float(loss.detach()) * b.numel()
             run_ok += int((out.argmax(1) == yt[b]).sum())
         vl, vacc = _evaluate(model, xv, yv, 256, loss_fn) if xv.shape[0] else (float("nan"), float("nan"))
+        if xv.shape[0] and not np.isfinite(vl):
+            raise TrainingError(f"training diverged: the validation loss became {vl} at epoch {epoch} "
+                                f"(learning rate {cfg.lr:g}); lower --lr. Nothing was saved")
         hist["train_loss"].append(run_loss / xt.shape[0])
         hist["train_acc"].append(run_ok / xt.shape[0])
         hist["val_loss"].append(vl)
@@ -222,35 +248,6 @@ class Classifier:
         return self.predict_proba(x).argmax(axis=1)
 
 
-def save_checkpoint(path: str | Path, clf: Classifier, history: dict | None = None, extra: dict | None = None) -> Path:
-    """Write `clf` (weights, configs, class and link names) plus history/metadata to `path` atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    blob = {"version": CHECKPOINT_VERSION, "model_config": clf.model.cfg.model_dump(mode="json"),
-            "preprocess": clf.preprocess.model_dump(mode="json"), "classes": list(clf.classes),
-            "links": list(clf.links), "state_dict": clf.model.state_dict(), "history": history or {},
-            "meta": {**clf.meta, **(extra or {})}}
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(blob, tmp)
-    tmp.replace(path)
-    return path
-
-
-def load_checkpoint(path: str | Path) -> Classifier:
-    """The `Classifier` stored by `save_checkpoint` (ValueError for a file that is not one)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"model file not found: {path}")
-    try:
-        blob = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:  # noqa: BLE001 - unpickling failures come in many types
-        raise ValueError(f"{path} is not a classifier checkpoint ({type(e).__name__})") from None
-    if not isinstance(blob, dict) or blob.get("version") != CHECKPOINT_VERSION:
-        raise ValueError(f"{path} is not a version-{CHECKPOINT_VERSION} classifier checkpoint")
-    model = build_model(ModelConfig(**blob["model_config"]))
-    model.load_state_dict(blob["state_dict"])
-    model.eval()
-    meta = dict(blob.get("meta", {}))
-    meta["history"] = blob.get("history", {})
-    return Classifier(model=model, preprocess=PreprocessConfig(**blob["preprocess"]), classes=list(blob["classes"]),
-                      links=list(blob["links"]), meta=meta)
+__all__ = ["CHECKPOINT_VERSION", "DEFAULT_THREADS", "Classifier", "TrainConfig", "TrainResult",
+           "auto_threads", "dataset_arrays", "load_checkpoint", "save_checkpoint", "setup_torch",
+           "split_indices", "train"]

@@ -3,11 +3,13 @@ activity pair across two backends), spectrogram distances, and a side-by-side p(
 from __future__ import annotations
 
 import csv
+import io
 import json
 from pathlib import Path
 
 import numpy as np
 
+from processing.atomic import savefig_atomic, write_text_atomic
 from processing.metrics import normalised_dtw, signature_distances
 from rtchannel.motion.procedural import ACTIVITIES, generate
 from rtchannel.radar import RadarConfig
@@ -62,17 +64,11 @@ def write_tables(out_dir: Path, name_a: str, name_b: str, rows, cols, table, per
     """CSV of the DTW table, CSV of per-activity distances, and a Markdown rendering of both."""
     out_dir.mkdir(parents=True, exist_ok=True)
     p_dtw = out_dir / f"dtw_{name_a}_vs_{name_b}.csv"
-    with p_dtw.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow([f"{name_a} \\ {name_b}", *cols])
-        for r, row in zip(rows, table):
-            w.writerow([r, *(f"{x:.4f}" for x in row)])
+    write_text_atomic(p_dtw, _csv([[f"{name_a} \\ {name_b}", *cols]]
+                                  + [[r, *(f"{x:.4f}" for x in row)] for r, row in zip(rows, table)]))
     p_act = out_dir / f"distances_{name_a}_vs_{name_b}.csv"
-    with p_act.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["activity", "dtw", "tv", "emd_m_s", "rmse_m_s"])
-        for a, d in per_activity.items():
-            w.writerow([a, f"{d['dtw']:.4f}", f"{d['tv']:.4f}", f"{d['emd']:.4f}", f"{d['rmse']:.4f}"])
+    write_text_atomic(p_act, _csv([["activity", "dtw", "tv", "emd_m_s", "rmse_m_s"]] + [
+        [a, f"{d['dtw']:.4f}", f"{d['tv']:.4f}", f"{d['emd']:.4f}", f"{d['rmse']:.4f}"] for a, d in per_activity.items()]))
     md = [f"Normalised DTW of mean radial velocity, rows {name_a}, columns {name_b} (mean over links)", "",
           "| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for r, row in zip(rows, table):
@@ -82,8 +78,14 @@ def write_tables(out_dir: Path, name_a: str, name_b: str, rows, cols, table, per
     md += [f"| {a} | {d['dtw']:.3f} | {d['tv']:.3f} | {d['emd']:.3f} | {d['rmse']:.3f} |"
            for a, d in per_activity.items()]
     p_md = out_dir / f"table_{name_a}_vs_{name_b}.md"
-    p_md.write_text("\n".join(md) + "\n")
+    write_text_atomic(p_md, "\n".join(md) + "\n")
     return [p_dtw, p_act, p_md]
+
+
+def _csv(rows) -> str:
+    buf = io.StringIO(newline="")
+    csv.writer(buf).writerows(rows)
+    return buf.getvalue()
 
 
 def plot_side_by_side(sigs: dict, path: Path, dynamic_range_db: float = 40.0) -> Path:
@@ -115,8 +117,7 @@ def plot_side_by_side(sigs: dict, path: Path, dynamic_range_db: float = 40.0) ->
                 ax.set_xlabel("t [s]", fontsize=8)
             ax.tick_params(labelsize=7)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -133,7 +134,7 @@ def compare(backends: list[str], activities: list[str], radar: RadarConfig, out_
         summary[f"{backends[0]}_vs_{other}"] = {"dtw": table.tolist(), "rows": rows, "cols": cols, "per_activity": per}
     written.append(plot_side_by_side(sigs, out_dir / "pvt_side_by_side.png"))
     p = out_dir / "summary.json"
-    p.write_text(json.dumps({"backends": backends, "activities": activities, "seed": seed, "height": height,
+    write_text_atomic(p, json.dumps({"backends": backends, "activities": activities, "seed": seed, "height": height,
                              "options": options or {}, "radar": radar.model_dump(mode="json"),
                              "comparisons": summary}, indent=1) + "\n")
     return [*written, p]

@@ -11,6 +11,7 @@ Writes a CSV, a Markdown table and a PNG of error against time with the Pareto f
 from __future__ import annotations
 
 import csv
+import io
 import json
 import statistics
 import time
@@ -19,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from processing.atomic import savefig_atomic, write_text_atomic
 from processing.metrics import signature_distances
 from rtchannel.radar import RadarConfig
 
@@ -133,18 +135,19 @@ def write_outputs(rows: list[dict], out_dir: Path, meta: dict) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     keys = ["label", "backend", "options", "s_per_sim_s", "tv", "emd_m_s", "rmse_m_s", "dtw"]
     p_csv = out_dir / "speed_error.csv"
-    with p_csv.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(keys)
-        for r in rows:
-            w.writerow([json.dumps(r[k]) if k == "options" else
-                        (f"{r[k]:.4g}" if isinstance(r[k], float) else r[k]) for k in keys])
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(keys)
+    for r in rows:
+        w.writerow([json.dumps(r[k]) if k == "options" else
+                    (f"{r[k]:.4g}" if isinstance(r[k], float) else r[k]) for k in keys])
+    write_text_atomic(p_csv, buf.getvalue())
     md = ["| setting | s per simulated s | p(v,t) EMD [m/s] | p(v,t) TV | mean-v RMSE [m/s] | DTW |",
           "|---|---|---|---|---|---|"]
     md += [f"| {r['label']} | {r['s_per_sim_s']:.3g} | {r['emd_m_s']:.3f} | {r['tv']:.3f} | {r['rmse_m_s']:.3f} "
            f"| {r['dtw']:.3f} |" for r in rows]
     p_md = out_dir / "speed_error.md"
-    p_md.write_text("\n".join(md) + "\n")
+    write_text_atomic(p_md, "\n".join(md) + "\n")
     cost = np.array([r["s_per_sim_s"] for r in rows])
     err = np.array([r["emd_m_s"] for r in rows])
     front = pareto_front(cost, err)
@@ -163,9 +166,9 @@ def write_outputs(rows: list[dict], out_dir: Path, meta: dict) -> list[Path]:
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     p_png = out_dir / "speed_error.png"
-    fig.savefig(p_png, dpi=120)
+    savefig_atomic(fig, p_png, dpi=120)
     plt.close(fig)
     p_json = out_dir / "speed_error.json"
-    p_json.write_text(json.dumps({"meta": meta, "rows": rows, "pareto": [rows[i]["label"] for i in front]},
-                                 indent=1) + "\n")
+    write_text_atomic(p_json, json.dumps({"meta": meta, "rows": rows, "pareto": [rows[i]["label"] for i in front]},
+                                         indent=1) + "\n")
     return [p_csv, p_md, p_png, p_json]

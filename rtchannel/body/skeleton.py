@@ -184,8 +184,14 @@ class Motion:
         """The same motion at another frame rate: slerp for rotations, cubic splines for positions."""
         if fps == self.fps:
             return self
+        from rtchannel.motion.source import check_resampled_frames  # ConfigError before allocating
+
+        if not (isinstance(fps, (int, float, np.number)) and 0 < fps < float("inf")):
+            from rtchannel.errors import ConfigError
+
+            raise ConfigError(f"fps: must be a positive finite frame rate in Hz, got {fps!r}")
         t_old = self.times
-        n_new = int(np.floor(self.duration * fps + 1e-9)) + 1
+        n_new = check_resampled_frames(self.duration, fps)
         t_new = np.arange(n_new) / fps
         pos = CubicSpline(t_old, self.positions, axis=0)(t_new)
         rot = np.empty((n_new, self.rig.n_joints, 3, 3))

@@ -1,7 +1,7 @@
 """The `rtchannel` command line: a thin layer over the Python API, one module per command.
 
-Errors in user input: one line on stderr, exit status 2. Command modules import their heavy
-dependencies inside the command, so `rtchannel simulate --backend points` never loads torch or Mitsuba.
+Errors in user input (`UserError`, `rtchannel.errors.USER_ERRORS`, OSError naming a file): one line on
+stderr, exit status 2. Command modules import their heavy dependencies inside the command, so `rtchannel simulate --backend points` never loads torch or Mitsuba.
 """
 from __future__ import annotations
 
@@ -11,7 +11,9 @@ import warnings
 
 from pydantic import ValidationError
 
+from processing.errors import one_line
 from rtchannel.cli.common import EXIT_USAGE, UserError, validation_line
+from rtchannel.errors import USER_ERRORS
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,11 +44,16 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except UserError as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"error: {one_line(e, 500)}", file=sys.stderr)
     except ValidationError as e:
         print(f"error: {validation_line(e, 'invalid value')}", file=sys.stderr)
-    except (ValueError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
+    except USER_ERRORS as e:  # every reader's InputError: one line naming file and line/field
+        print(f"error: {one_line(e, 500)}", file=sys.stderr)
+    except OSError as e:  # unreadable input, unwritable output, full disk: name the file, no traceback
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        print(f"error: {where}{one_line(e.strerror or e, 500)}", file=sys.stderr)
+    except ValueError as e:
+        print(f"error: {one_line(e, 500)}", file=sys.stderr)
     except Exception as e:  # noqa: BLE001 - any library failure surfaces as one clear line
         if type(e).__name__ == "LLVMNotFoundError":
             print(f"error: {e}", file=sys.stderr)
@@ -55,4 +62,4 @@ def main(argv: list[str] | None = None) -> int:
     return EXIT_USAGE
 
 
-__all__ = ["main", "build_parser", "UserError", "EXIT_USAGE"]
+__all__ = ["main", "build_parser", "UserError", "EXIT_USAGE", "USER_ERRORS"]

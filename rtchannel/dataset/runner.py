@@ -1,9 +1,12 @@
 """Run a plan's work items with Dask (or in this process for one worker), resumably, into HDF5 shards.
 
 * Items are processed in batches of `items_per_shard`; each batch is one Dask task that writes one shard
-  (temporary file, then rename) and returns the entries. The shards are the source of truth: on start the
-  runner removes orphan temporary files and unreadable shards, rebuilds the index from the shards and
-  skips every item already in one, so a killed run resumes without duplicates or gaps.
+  (temporary file, fsync, rename) and returns the entries. The shards are the source of truth: on start
+  the runner removes orphan temporary files, re-reads every shard and checks every stored array against
+  its sha256 (`scan_shards(verify=True, repair=True)`): a shard that is unreadable, foreign or holds a
+  failing item is renamed ``*.bad`` (never deleted) and its verified items are kept in a new shard of the
+  same name. It then rebuilds the index from the shards and skips every item already in one, so a killed
+  run resumes without duplicates or gaps and corrupted data is computed again, never passed on.
 * An item that raises is retried `retries` times inside its task; if it keeps failing it is recorded in
   DIR/errors.jsonl with its error and the rest of the run goes on. A task whose worker dies is retried
   by Dask, then split into single-item tasks so one bad item cannot sink its batch.
@@ -19,11 +22,14 @@ import json
 import os
 import time
 import traceback
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from processing.dataset_store import (ERRORS, PLAN, SHARDS, append_jsonl, remove_orphans, scan_shards,
-                                      write_index, write_shard, write_text_atomic)
+from processing.atomic import write_text_atomic
+from processing.dataset_store import (ERRORS, PLAN, SHARDS, append_jsonl, check_record, read_shard_entries,
+                                      remove_orphans, scan_shards, write_index, write_shard)
+from processing.errors import DatasetFormatError, InputError
 from rtchannel.dataset.plan import Plan, WorkItem, expand
 
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -35,7 +41,7 @@ MALLOC_ENV = {"MALLOC_TRIM_THRESHOLD_": "268435456", "MALLOC_MMAP_THRESHOLD_": "
 _WORKER = {"configured": False}
 
 
-class PlanMismatchError(ValueError):
+class PlanMismatchError(InputError):
     """The output folder already holds a dataset made from another plan."""
 
 
@@ -49,6 +55,8 @@ class RunSummary:
     failed: list[dict] = field(default_factory=list)
     seconds: float = 0.0
     workers: int = 1
+    quarantined: list[str] = field(default_factory=list)  # shards renamed *.bad on this start
+    verify_seconds: float = 0.0  # time spent re-reading and checking the shards on start
 
     @property
     def complete(self) -> bool:
@@ -111,7 +119,7 @@ def run_batch(items: list[WorkItem], out: str, plan_digest: str, retries: int, d
     for it in items:
         for attempt in range(retries + 1):
             try:
-                records.append(run_item(it))
+                records.append(check_record(run_item(it)))  # an empty or NaN signature is an item failure
                 break
             except Exception as exc:  # noqa: BLE001 - recorded per item, the run goes on
                 if attempt == retries:
@@ -121,31 +129,44 @@ def run_batch(items: list[WorkItem], out: str, plan_digest: str, retries: int, d
     if not records:
         return {"shard": None, "entries": [], "errors": errors}
     name = shard_name(plan_digest, items)
-    write_shard(Path(out) / SHARDS / name, records, attrs={"plan": plan_digest})
-    entries = [{**r["entry"], "shard": name} for r in records]
+    path = write_shard(Path(out) / SHARDS / name, records, attrs={"plan": plan_digest})
+    entries, _ = read_shard_entries(path)  # as stored: with links and sha256, like the rebuilt index
     return {"shard": name, "entries": entries, "errors": errors}
 
 
-def _prepare(plan: Plan, out: Path) -> tuple[list[dict], str]:
+def _prepare(plan: Plan, out: Path, verify: bool = True) -> tuple[list[dict], str, list[str], float]:
+    """(verified entries, plan digest, shards renamed *.bad, seconds spent verifying)."""
     out.mkdir(parents=True, exist_ok=True)
     (out / SHARDS).mkdir(exist_ok=True)
     digest = plan.digest()
     plan_file = out / PLAN
     if plan_file.is_file():
-        old = json.loads(plan_file.read_text())
+        try:
+            old = json.loads(plan_file.read_text())
+        except (OSError, ValueError, RecursionError) as e:
+            raise DatasetFormatError(f"{plan_file}: unreadable ({type(e).__name__}); move it away or use a new "
+                                     "--out folder") from None
+        if not isinstance(old, dict):
+            raise DatasetFormatError(f"{plan_file}: expected a JSON object; use a new --out folder")
         if old.get("digest") != digest:
             raise PlanMismatchError(f"{out} holds a dataset of another plan (digest {old.get('digest')}, "
                                     f"this plan {digest}); use a new --out folder")
     else:
         write_text_atomic(plan_file, json.dumps({"digest": digest, "plan": plan.model_dump(mode="json")}, indent=1))
     remove_orphans(out)
-    entries, _ = scan_shards(out, delete_bad=True)
+    t0 = time.perf_counter()
+    entries, bad = scan_shards(out, verify=verify, repair=True)
+    seconds = time.perf_counter() - t0
+    for name in bad:
+        warnings.warn(f"{out / SHARDS / name}: unreadable, not a shard, or an array failed its checksum: renamed "
+                      f"to {name}.bad; its failed items are computed again", stacklevel=3)
     write_index(out, entries)
-    return entries, digest
+    return entries, digest, bad, seconds
 
 
 def run_plan(plan: Plan, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
-             retries: int = 2, progress: bool = True, client=None, item_filter=None) -> RunSummary:
+             retries: int = 2, progress: bool = True, client=None, item_filter=None,
+             verify: bool = True) -> RunSummary:
     """Run every unfinished item of `plan` into folder `out`.
 
     Args:
@@ -160,6 +181,8 @@ def run_plan(plan: Plan, out: str | Path, *, scheduler: str | None = None, worke
         client: an existing `distributed.Client` to use instead.
         item_filter: optional predicate on `WorkItem`: run (and count) only the items it accepts
             (benchmarks, partial runs).
+        verify: on start, check every stored array against its sha256 (default; False only for
+            benchmarks: unverified resumes can pass corrupted data on).
 
     Returns:
         A `RunSummary`. Raises `PlanMismatchError` if `out` holds another plan's dataset, or
@@ -175,24 +198,26 @@ def run_plan(plan: Plan, out: str | Path, *, scheduler: str | None = None, worke
         lock.close()
         raise BlockingIOError(f"another run is writing to {out}") from None
     try:
-        return _run_locked(plan, out, scheduler, workers, retries, progress, client, item_filter, t_start)
+        return _run_locked(plan, out, scheduler, workers, retries, progress, client, item_filter, t_start, verify)
     finally:
         fcntl.flock(lock, fcntl.LOCK_UN)
         lock.close()
 
 
-def _run_locked(plan, out, scheduler, workers, retries, progress, client, item_filter, t_start) -> RunSummary:
+def _run_locked(plan, out, scheduler, workers, retries, progress, client, item_filter, t_start,
+                verify=True) -> RunSummary:
     from tqdm import tqdm
 
-    done, digest = _prepare(plan, out)
+    done, digest, quarantined, verify_s = _prepare(plan, out, verify)
     items = [it for it in expand(plan) if item_filter is None or item_filter(it)]
     done_ids = {e["item_id"] for e in done}
     pending = [it for it in items if it.item_id not in done_ids]
     per = plan.storage.items_per_shard
     batches = [pending[i:i + per] for i in range(0, len(pending), per)]
     n_workers = workers or os.cpu_count() or 1
-    summary = RunSummary(total=len(items), done_before=len(items) - len(pending), done_now=0, workers=n_workers)
-    (out / ERRORS).write_text("")  # failures of this run only; earlier failures are retried
+    summary = RunSummary(total=len(items), done_before=len(items) - len(pending), done_now=0, workers=n_workers,
+                         quarantined=quarantined, verify_seconds=verify_s)
+    write_text_atomic(out / ERRORS, "")  # failures of this run only; earlier failures are retried
     bar = tqdm(total=len(pending), unit="item", disable=not progress or None, dynamic_ncols=True,
                desc=f"{plan.name} ({summary.done_before}/{len(items)} done)")
 
@@ -222,7 +247,7 @@ def _run_locked(plan, out, scheduler, workers, retries, progress, client, item_f
         write_index(out, entries)  # sorted, deduplicated: heals a kill between shard rename and index append
     final_ids = {e["item_id"] for e in entries}
     summary.failed = sorted((e for e in summary.failed if e["item_id"] not in final_ids), key=lambda e: e["item_id"])
-    (out / ERRORS).write_text("".join(json.dumps({k: v for k, v in e.items() if k != "traceback"}, sort_keys=True)
+    write_text_atomic(out / ERRORS, "".join(json.dumps({k: v for k, v in e.items() if k != "traceback"}, sort_keys=True)
                                       + "\n" for e in summary.failed))
     summary.seconds = time.perf_counter() - t_start
     return summary

@@ -1,126 +1,254 @@
-"""BVH import (hierarchy through bvhio, channel data through numpy) and BVH export of a `Motion`.
+"""BVH import (own line-numbered parser, channel data through numpy) and BVH export of a `Motion`.
 
-bvhio parses the HIERARCHY section. Its key-frame reader is not used: it builds one Python object per
-joint and frame (slow for the ~100-joint iClone rig) and loops forever on a file cut inside the
-hierarchy, so the file is checked first and the MOTION block is parsed here with line-numbered errors.
+The grammar is small, so it is parsed here rather than by bvhio, whose reader loops forever on a file
+cut inside the hierarchy, cannot take text (a UTF-8 byte-order mark makes it refuse the file), stores
+offsets as float32 and reports errors as SyntaxError tuples. Every error is a `MotionImportError`
+naming the file and line (and frame). Limits (`rtchannel.motion.source`): frame time 0.1 ms..1 s, at most
+`MAX_SOURCE_FRAMES` frames and `MAX_VALUES` channel values, angles within +-`MAX_ANGLE_DEG`, every point
+within `MAX_COORD_M` of the origin, header frame count equal to the data rows.
 """
 from __future__ import annotations
 
+import io
+import math
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from processing.atomic import write_text_atomic
 from rtchannel.motion.errors import MotionImportError
 from rtchannel.motion.rigs import cc_neutral
-from rtchannel.motion.source import SourceMotion, guess_units, guess_up, parse_units, up_rotation
+from rtchannel.motion.source import (FILE_FPS_RANGE, MAX_ANGLE_DEG, MAX_DURATION_S, MAX_SOURCE_FRAMES,
+                                     SourceMotion, check_extent, guess_units, guess_up, parse_units, up_rotation)
 from rtchannel.body.skeleton import Motion
 
 END = "/End"  # suffix naming a joint's End Site point
+MAX_BVH_BYTES = 1 << 30  # text; ~10 bytes per value, so MAX_VALUES of text is ~0.5 GB
+MAX_VALUES = 50_000_000  # frames x channels: 400 MB as float64 (e.g. 2.3 h of the 96-channel CMU rig at 60 Hz)
+MAX_JOINTS = 1000  # the largest rigs (iClone CC with fingers and face) have ~250 joints
+MAX_LINES = 2 * MAX_SOURCE_FRAMES + 10 * MAX_JOINTS  # data rows, hierarchy and some blank lines
+MAX_OFFSET = 1e6  # |OFFSET| in file units: 10 km in mm; larger is a corrupted number
+_CHANNELS = {f"{a}{k}": f"{a.upper()}{k}" for a in "xyzXYZ" for k in ("position", "rotation")}
 
 
-def _check_structure(path: Path, lines: list[str]) -> int:
-    """Index of the MOTION line; raise if the hierarchy is cut or unbalanced (bvhio would hang)."""
-    depth, motion_at = 0, None
-    for i, line in enumerate(lines):
-        tok = line.split()
-        if not tok:
-            continue
-        if tok[0] == "MOTION":
-            motion_at = i
-            break
-        depth += tok.count("{") - tok.count("}")
-        if depth < 0:
-            raise MotionImportError(path, "unbalanced '}' in the HIERARCHY section", line=i + 1)
-    if not lines or lines[0].split()[:1] != ["HIERARCHY"]:
-        raise MotionImportError(path, "not a BVH file (first line must be HIERARCHY)", line=1)
-    if motion_at is None:
-        raise MotionImportError(path, "file ends inside the HIERARCHY section (no MOTION line): "
-                                "truncated?", line=len(lines))
-    if depth != 0:
-        raise MotionImportError(path, "HIERARCHY has unbalanced braces (truncated?)", line=motion_at + 1)
-    if len(lines) < motion_at + 3:
-        raise MotionImportError(path, "MOTION header (Frames, Frame Time) is missing", line=len(lines))
-    return motion_at
+class _Tokens:
+    """Whitespace-separated tokens of the HIERARCHY section with their (1-based) line numbers."""
+
+    def __init__(self, path: Path, lines: list[str], stop: int):
+        self.path = path
+        self.items = [(tok, i + 1) for i, ln in enumerate(lines[:stop]) for tok in ln.split()]
+        self.k = 0
+        self.last_line = stop
+
+    def next(self, what: str) -> tuple[str, int]:
+        if self.k >= len(self.items):
+            raise MotionImportError(self.path, f"file ends inside the HIERARCHY section while expecting {what} "
+                                    "(truncated?)", line=self.last_line)
+        self.k += 1
+        return self.items[self.k - 1]
+
+    def expect(self, word: str) -> int:
+        tok, line = self.next(repr(word))
+        if tok != word:
+            raise MotionImportError(self.path, f"expected {word!r}, found {tok[:40]!r}", line=line)
+        return line
+
+    def number(self, what: str) -> float:
+        tok, line = self.next(what)
+        try:
+            v = float(tok)
+        except ValueError:
+            raise MotionImportError(self.path, f"{what} is not a number: {tok[:40]!r}", line=line) from None
+        if not math.isfinite(v) or abs(v) > MAX_OFFSET:
+            raise MotionImportError(self.path, f"{what} {tok[:40]} is not finite or beyond +-{MAX_OFFSET:g}", line=line)
+        return v
 
 
-def _read_hierarchy(path: Path):
-    import warnings
+def _parse_hierarchy(path: Path, lines: list[str], motion_at: int) -> dict:
+    """Joints (depth-first), parents, offsets [J, 3], channels, end sites of the HIERARCHY section."""
+    tk = _Tokens(path, lines, motion_at)
+    tk.expect("HIERARCHY")
+    names, parents, offsets, channels, ends, lines_of = [], [], [], [], {}, {}
+    stack: list[int] = []  # open joints
 
-    with warnings.catch_warnings():  # bvhio's "import glm" deprecation notice is not the user's concern
-        warnings.simplefilter("ignore", PendingDeprecationWarning)
-        import bvhio
+    def offset(owner: str) -> list[float]:
+        tk.expect("OFFSET")
+        return [tk.number(f"OFFSET of {owner}") for _ in range(3)]
 
+    def open_joint(kind_line: int) -> None:
+        name, line = tk.next("a joint name")
+        if name in ("{", "}"):
+            raise MotionImportError(path, "joint name missing", line=line)
+        if name in lines_of:
+            raise MotionImportError(path, f"joint {name[:40]!r} defined twice (first at line {lines_of[name]})",
+                                    line=line)
+        if len(names) >= MAX_JOINTS:
+            raise MotionImportError(path, f"more than {MAX_JOINTS} joints", line=line)
+        lines_of[name] = line
+        tk.expect("{")
+        names.append(name)
+        parents.append(stack[-1] if stack else -1)
+        offsets.append(offset(name))
+        chans: list[str] = []
+        if tk.k < len(tk.items) and tk.items[tk.k][0] == "CHANNELS":
+            tk.next("CHANNELS")
+            n = tk.number(f"channel count of {name}")
+            _, cline = tk.items[tk.k - 1]
+            if not n.is_integer() or not 0 <= n <= 6:
+                raise MotionImportError(path, f"channel count of {name[:40]} must be an integer 0..6, got {n:g}",
+                                        line=cline)
+            for _ in range(int(n)):
+                tok, ln = tk.next(f"a channel name of {name}")
+                canon = _CHANNELS.get(tok)
+                if canon is None:
+                    raise MotionImportError(path, f"unknown channel {tok[:40]!r} (use Xposition ... Zrotation)",
+                                            line=ln)
+                if canon in chans:
+                    raise MotionImportError(path, f"channel {canon} listed twice for joint {name[:40]}", line=ln)
+                chans.append(canon)
+        channels.append(chans)
+        stack.append(len(names) - 1)
+
+    tk.expect("ROOT")
+    open_joint(0)
+    while stack:
+        tok, line = tk.next("JOINT, End Site or '}'")
+        if tok == "JOINT":
+            open_joint(line)
+        elif tok == "End":
+            tk.expect("Site")
+            tk.expect("{")
+            ends[stack[-1]] = np.array(offset(f"End Site of {names[stack[-1]]}"))
+            tk.expect("}")
+        elif tok == "}":
+            stack.pop()
+        else:
+            raise MotionImportError(path, f"expected JOINT, End Site or '}}', found {tok[:40]!r}", line=line)
+    if tk.k < len(tk.items):
+        tok, line = tk.items[tk.k]
+        raise MotionImportError(path, f"unexpected {tok[:40]!r} after the root joint (one ROOT per file)", line=line)
+    for j in range(len(names)):  # a leaf without End Site ends where it starts
+        if j not in parents and j not in ends:
+            ends[j] = np.zeros(3)
+    return dict(names=names, parents=np.array(parents), offsets=np.array(offsets, float), channels=channels,
+                end_sites=ends)
+
+
+def _motion_header(path: Path, lines: list[str], motion_at: int) -> tuple[int, float, int]:
+    """(frame count, frame time [s], index of the first data line) from the lines after MOTION."""
+    if lines[motion_at].split() != ["MOTION"]:
+        raise MotionImportError(path, "MOTION line must hold the word MOTION only", line=motion_at + 1)
+    rest = [i for i in range(motion_at + 1, min(len(lines), motion_at + 50)) if lines[i].strip()][:2]
+    if len(rest) < 2:
+        raise MotionImportError(path, "MOTION header (Frames, Frame Time) is missing (truncated?)", line=len(lines))
+    i_frames, i_time = rest
+    tok = lines[i_frames].split()
+    if len(tok) != 2 or tok[0] != "Frames:":
+        raise MotionImportError(path, "expected 'Frames: N' after MOTION", line=i_frames + 1)
     try:
-        return bvhio.readAsBvh(str(path), loadKeyFrames=False)
-    except SyntaxError as exc:
-        line = exc.args[1][1] if len(exc.args) > 1 and isinstance(exc.args[1], tuple) else None
-        raise MotionImportError(path, f"malformed BVH: {exc.args[0]}", line=line) from None
-    except (ValueError, IndexError, TypeError) as exc:
-        raise MotionImportError(path, f"malformed BVH hierarchy: {exc}") from None
+        n = int(tok[1])
+    except ValueError:
+        raise MotionImportError(path, f"frame count is not an integer: {tok[1][:40]!r}", line=i_frames + 1) from None
+    if not 1 <= n <= MAX_SOURCE_FRAMES:
+        raise MotionImportError(path, f"frame count {n} outside 1..{MAX_SOURCE_FRAMES}", line=i_frames + 1)
+    tok = lines[i_time].split()
+    if len(tok) != 3 or tok[:2] != ["Frame", "Time:"]:
+        raise MotionImportError(path, "expected 'Frame Time: SECONDS' after the frame count", line=i_time + 1)
+    try:
+        dt = float(tok[2])
+    except ValueError:
+        raise MotionImportError(path, f"frame time is not a number: {tok[2][:40]!r}", line=i_time + 1) from None
+    lo, hi = 1.0 / FILE_FPS_RANGE[1], 1.0 / FILE_FPS_RANGE[0]
+    if not lo <= dt <= hi:  # also refuses nan and inf
+        raise MotionImportError(path, f"frame time {tok[2][:40]} s outside {lo:g}..{hi:g} s "
+                                f"({FILE_FPS_RANGE[0]:g}..{FILE_FPS_RANGE[1]:g} frames/s)", line=i_time + 1)
+    if n * dt > MAX_DURATION_S:
+        raise MotionImportError(path, f"{n} frames of {dt:g} s last {n * dt:.0f} s, more than the "
+                                f"{MAX_DURATION_S:.0f} s limit (split the take)", line=i_frames + 1)
+    return n, dt, i_time + 1
 
 
-def _parse_frames(path: Path, lines: list[str], first: int, n_frames: int, n_channels: int) -> np.ndarray:
-    rows = [(i, ln) for i, ln in enumerate(lines[first:], start=first) if ln.strip()]
-    for k, (i, ln) in enumerate(rows[:n_frames]):
-        if len(ln.split()) != n_channels:
-            raise MotionImportError(path, f"expected {n_channels} channel values, found {len(ln.split())} "
+def _parse_frames(path: Path, lines: list[str], first: int, n_frames: int, n_channels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Channel data [F, C] and the 1-based line number of each frame."""
+    rows = [i for i in range(first, len(lines)) if lines[i].strip()]
+    if n_frames * max(n_channels, 1) > MAX_VALUES:
+        raise MotionImportError(path, f"{n_frames} frames x {n_channels} channels exceed the limit of "
+                                f"{MAX_VALUES} values", line=first)
+    for k, i in enumerate(rows[:n_frames]):
+        got = len(lines[i].split())
+        if got != n_channels:
+            raise MotionImportError(path, f"expected {n_channels} channel values, found {got} "
                                     "(truncated or corrupted line)", line=i + 1, frame=k)
     if len(rows) < n_frames:
-        last = rows[-1][0] + 1 if rows else first
+        last = rows[-1] + 1 if rows else first
         raise MotionImportError(path, f"truncated: header says {n_frames} frames, file holds {len(rows)} "
                                 f"(frame {len(rows)} is missing)", line=last + 1, frame=len(rows))
-    try:
-        data = np.array(" ".join(ln for _, ln in rows[:n_frames]).split(), dtype=float)
+    if len(rows) > n_frames:
+        raise MotionImportError(path, f"header says {n_frames} frames but the file holds {len(rows)} data rows "
+                                "(wrong Frames: count or appended data)", line=rows[n_frames] + 1, frame=n_frames)
+    line_no = np.asarray(rows, dtype=np.int64) + 1
+    if n_channels == 0:
+        return np.zeros((n_frames, 0)), line_no
+    try:  # numpy's C parser: no Python object per value
+        data = np.loadtxt(io.StringIO("\n".join(lines[i] for i in rows)), dtype=float, ndmin=2)
     except ValueError:
-        for k, (i, ln) in enumerate(rows[:n_frames]):
-            for tok in ln.split():
+        for k, i in enumerate(rows):
+            for tok in lines[i].split():
                 try:
                     float(tok)
                 except ValueError:
-                    raise MotionImportError(path, f"not a number: {tok!r}", line=i + 1, frame=k) from None
+                    raise MotionImportError(path, f"not a number: {tok[:40]!r}", line=i + 1, frame=k) from None
         raise
     data = data.reshape(n_frames, n_channels)
     bad = ~np.isfinite(data)
     if bad.any():
         k = int(np.argwhere(bad)[0, 0])
-        raise MotionImportError(path, "non-finite channel value", line=rows[k][0] + 1, frame=k)
-    return data
+        raise MotionImportError(path, "non-finite channel value", line=int(line_no[k]), frame=k)
+    return data, line_no
 
 
 def read_bvh_raw(path) -> dict:
     """Parse a BVH file: joints, parents, offsets, channels, end sites, frame time, channel data.
 
     Returns a dict with ``names`` [J], ``parents`` [J], ``offsets`` [J, 3] and ``end_sites`` {index:
-    [3]} (file units), ``channels`` (list per joint), ``frame_time`` (s), ``data`` [F, C].
+    [3]} (file units), ``channels`` (list per joint), ``frame_time`` (s), ``data`` [F, C] and
+    ``line_of_frame`` [F] (1-based line numbers, for messages).
     """
     path = Path(path)
     try:
-        lines = path.read_text(errors="replace").splitlines()
+        size = path.stat().st_size
+        if size > MAX_BVH_BYTES:
+            raise MotionImportError(path, f"file of {size / 2**20:.0f} MiB exceeds the {MAX_BVH_BYTES >> 20} MiB limit")
+        text = path.read_bytes().decode("utf-8-sig", errors="replace")  # a byte-order mark is allowed
     except OSError as exc:
         raise MotionImportError(path, f"cannot read file: {exc.strerror or exc}") from None
-    motion_at = _check_structure(path, lines)
-    bvh = _read_hierarchy(path)
-    names, parents, offsets, channels, ends = [], [], [], [], {}
-
-    def walk(joint, parent):
-        idx = len(names)
-        names.append(joint.Name)
-        parents.append(parent)
-        offsets.append([joint.Offset.x, joint.Offset.y, joint.Offset.z])
-        channels.append(list(joint.Channels))
-        if not joint.Children:
-            ends[idx] = np.array([joint.EndSite.x, joint.EndSite.y, joint.EndSite.z])
-        for child in joint.Children:
-            walk(child, idx)
-
-    walk(bvh.Root, -1)
-    if not bvh.FrameTime > 0:
-        raise MotionImportError(path, f"Frame Time must be positive, got {bvh.FrameTime}", line=motion_at + 3)
-    n_ch = sum(len(c) for c in channels)
-    data = _parse_frames(path, lines, motion_at + 3, int(bvh.FrameCount), n_ch)
-    return dict(names=names, parents=np.array(parents), offsets=np.array(offsets, float), channels=channels,
-                end_sites=ends, frame_time=float(bvh.FrameTime), data=data)
+    n_lines = max(text.count("\n"), text.count("\r")) + 1  # counted before splitting: a line costs ~60 B
+    if n_lines > MAX_LINES:
+        raise MotionImportError(path, f"more than {MAX_LINES} lines: not a motion take (the frame limit is "
+                                f"{MAX_SOURCE_FRAMES})")
+    lines = text.splitlines()
+    if not lines or lines[0].split()[:1] != ["HIERARCHY"]:
+        raise MotionImportError(path, "not a BVH file (first line must be HIERARCHY)", line=1)
+    motion_at = next((i for i, ln in enumerate(lines) if ln.split()[:1] == ["MOTION"]), None)
+    if motion_at is None:
+        raise MotionImportError(path, "file ends inside the HIERARCHY section (no MOTION line): truncated?",
+                                line=len(lines))
+    raw = _parse_hierarchy(path, lines, motion_at)
+    n_frames, frame_time, first = _motion_header(path, lines, motion_at)
+    n_ch = sum(len(c) for c in raw["channels"])
+    data, line_no = _parse_frames(path, lines, first, n_frames, n_ch)
+    col = 0
+    for name, chans in zip(raw["names"], raw["channels"]):
+        for ch in chans:
+            limit, unit = (MAX_ANGLE_DEG, " deg") if ch.endswith("rotation") else (MAX_OFFSET, " file units")
+            big = np.abs(data[:, col]) > limit
+            if big.any():
+                k = int(np.argmax(big))
+                raise MotionImportError(path, f"{name[:40]} {ch} = {data[k, col]:.3g}{unit} is beyond "
+                                        f"+-{limit:g}{unit}: corrupted data", line=int(line_no[k]), frame=k)
+            col += 1
+    return {**raw, "frame_time": float(frame_time), "data": data, "line_of_frame": line_no}
 
 
 def forward_kinematics_bvh(raw: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -197,6 +325,7 @@ def read_bvh(path, *, units=None, up=None) -> SourceMotion:
     points = {n: pos[:, i] @ c.T for i, n in enumerate(names)}
     for i, off in raw["end_sites"].items():
         points[names[i] + END] = (pos[:, i] + np.einsum("fab,b->fa", rot[:, i], off)) @ c.T
+    check_extent(path, points, raw["line_of_frame"])
     orientations = {n: np.einsum("ab,fbc->fac", c_rot, rot[:, i]) for i, n in enumerate(names)}
     neutral = cc_neutral() if kind == "cc" else _zero_pose_neutral(raw, c_rot, names)
     info = {"format": "bvh", "rig": kind, "units": unit_name or f"{scale} m/unit", "metres_per_unit": scale,
@@ -263,7 +392,7 @@ def write_bvh(motion: Motion, path, *, units: str = "cm") -> None:
     data = np.concatenate(cols, axis=1)
     lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {1.0 / motion.fps:.8f}"]
     lines += [" ".join(f"{x:.9g}" for x in row) for row in data]
-    Path(path).write_text("\n".join(lines) + "\n")
+    write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 __all__ = ["read_bvh", "read_bvh_raw", "forward_kinematics_bvh", "write_bvh", "END"]

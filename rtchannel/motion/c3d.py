@@ -20,14 +20,18 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from processing.errors import one_line
 from rtchannel.motion.errors import MotionImportError
-from rtchannel.motion.source import SourceMotion, guess_units, guess_up, parse_units, up_rotation
+from rtchannel.motion.source import (FILE_FPS_RANGE, MAX_DURATION_S, MAX_SOURCE_FRAMES, SourceMotion,
+                                     check_extent, guess_units, guess_up, parse_units, up_rotation)
 
 KNEE_OFFSET_M = 0.055
 ANKLE_OFFSET_M = 0.045
 SHOULDER_DROP_M = 0.055
 MAX_GAP_S = 0.2
 ALIASES = {"LASI": "LFWT", "RASI": "RFWT", "LPSI": "LBWT", "RPSI": "RBWT", "RBAK": "RBAC"}
+MAX_C3D_BYTES = 1 << 30  # a 41-marker take at 120 Hz is ~1 MB per minute: 1 GiB is ~16 h
+LEG_RANGE_M = (0.3, 1.5)  # hip-to-ankle marker distance of an adult [m]: outside it the units are wrong
 REQUIRED = ("LFWT", "RFWT", "LBWT", "RBWT", "LTHI", "LKNE", "LSHN", "LANK", "LHEE", "LMT5", "LTOE",
             "RTHI", "RKNE", "RSHN", "RANK", "RHEE", "RMT5", "RTOE", "CLAV", "STRN", "C7", "T10",
             "LFHD", "RFHD", "LBHD", "RBHD", "LSHO", "LUPA", "LELB", "LWRA", "LWRB", "LFIN",
@@ -45,26 +49,79 @@ def _header_frames(path: Path) -> int | None:
         return None
 
 
+# ezc3d (C++) crashes with a segmentation fault on some corrupted headers or parameter sections (byte
+# flips in the first 3 kB: 3 of 3 fuzz runs crashed) and may allocate what a corrupt header asks for, so
+# it runs in a child process with an address-space limit; a crash there is a one-line import error.
+C3D_CHILD_MEMORY = 8 << 30  # address space of the parsing process [bytes]
+C3D_CHILD_TIMEOUT_S = 600.0
+_CHILD = r"""
+import resource, sys
+limit = int(sys.argv[3])
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+import numpy as np
+try:
+    import ezc3d
+    c = ezc3d.c3d(sys.argv[1])
+    point = c["parameters"]["POINT"]
+    units = str(point["UNITS"]["value"][0]) if "UNITS" in point and len(point["UNITS"]["value"]) else ""
+    stated = int(point["FRAMES"]["value"][0]) if "FRAMES" in point and len(point["FRAMES"]["value"]) else -1
+    np.savez(sys.argv[2], points=np.asarray(c["data"]["points"], dtype=float),
+             rate=float(c["header"]["points"]["frame_rate"]), labels=np.array([str(x) for x in point["LABELS"]["value"]], dtype=str),
+             units=units, residuals=np.asarray(c["data"]["meta_points"]["residuals"], dtype=float), stated=stated)
+except MemoryError:
+    print("MemoryError: the file asks for more memory than allowed")
+    sys.exit(3)
+except Exception as exc:
+    print(f"{type(exc).__name__}: {' '.join(str(exc).split())[:120]}")
+    sys.exit(3)
+"""
+
+
+def _read_c3d_isolated(path: Path) -> dict:
+    """ezc3d's reading of `path` (points [4, M, F], rate, labels, units, residuals, stated frames), done in a
+    child process; MotionImportError if it fails, crashes, runs out of memory or time."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="rtchannel-c3d-") as tmp:
+        out = Path(tmp) / "markers.npz"
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+        try:
+            proc = subprocess.run([sys.executable, "-c", _CHILD, str(path), str(out), str(C3D_CHILD_MEMORY)],
+                                  capture_output=True, text=True, timeout=C3D_CHILD_TIMEOUT_S, env=env)
+        except subprocess.TimeoutExpired:
+            raise MotionImportError(path, f"not a readable C3D file (parsing took over {C3D_CHILD_TIMEOUT_S:.0f} s)") from None
+        if proc.returncode != 0 or not out.is_file():
+            why = proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else (
+                f"the C3D parser crashed (signal {-proc.returncode})" if proc.returncode < 0
+                else f"the C3D parser failed (exit status {proc.returncode})")
+            raise MotionImportError(path, f"not a readable C3D file ({one_line(why, 160)})")
+        with np.load(out, allow_pickle=False) as z:
+            got = {k: z[k] for k in z.files}
+    got["units"] = str(got["units"]) or None
+    got["stated"] = int(got["stated"]) if int(got["stated"]) >= 0 else None
+    got["labels"] = [str(x) for x in got["labels"]]
+    return got
+
+
 def read_markers(path) -> tuple[dict[str, np.ndarray], float, str | None]:
     """Marker trajectories {label: [F, 3]} in file units (NaN where missing), frame rate [Hz], units."""
     path = Path(path)
     if not path.is_file():
         raise MotionImportError(path, "no such file")
-    import ezc3d
-
     try:
-        c = ezc3d.c3d(str(path))
-        pts = np.asarray(c["data"]["points"], dtype=float)
-        rate = float(c["header"]["points"]["frame_rate"])
-        point = c["parameters"]["POINT"]
-        labels = [str(x) for x in point["LABELS"]["value"]]
-        units = str(point["UNITS"]["value"][0]) if "UNITS" in point and len(point["UNITS"]["value"]) else None
-        residuals = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)
-        stated = int(point["FRAMES"]["value"][0]) if "FRAMES" in point else None
-    except MotionImportError:
-        raise
-    except Exception as exc:  # ezc3d raises OSError/RuntimeError/ValueError on malformed files
-        raise MotionImportError(path, f"not a readable C3D file ({type(exc).__name__}: {exc})") from None
+        size = path.stat().st_size
+        with open(path, "rb"):
+            pass
+    except OSError as exc:
+        raise MotionImportError(path, f"cannot read file: {exc.strerror or exc}") from None
+    if size > MAX_C3D_BYTES:
+        raise MotionImportError(path, f"file of {size / 2**20:.0f} MiB exceeds the {MAX_C3D_BYTES >> 20} MiB limit")
+    got = _read_c3d_isolated(path)
+    pts, rate, labels, units, residuals, stated = (got["points"], float(got["rate"]), list(got["labels"]),
+                                                   got["units"], got["residuals"], got["stated"])
     n = pts.shape[2] if pts.ndim == 3 else 0
     expected = max(x for x in (stated or 0, _header_frames(path) or 0))
     if n == 0 or len(labels) < pts.shape[1]:
@@ -72,11 +129,19 @@ def read_markers(path) -> tuple[dict[str, np.ndarray], float, str | None]:
     if expected and n < expected:
         raise MotionImportError(path, f"truncated: header says {expected} frames, file holds {n} "
                                 f"(frame {n} is missing)", frame=n)
-    if not rate > 0:
-        raise MotionImportError(path, f"invalid point frame rate {rate}")
+    if not FILE_FPS_RANGE[0] <= rate <= FILE_FPS_RANGE[1]:  # also refuses nan
+        raise MotionImportError(path, f"point frame rate {rate:g} Hz is outside {FILE_FPS_RANGE[0]:g}.."
+                                f"{FILE_FPS_RANGE[1]:g} Hz")
+    if n > MAX_SOURCE_FRAMES or n / rate > MAX_DURATION_S:
+        raise MotionImportError(path, f"{n} frames at {rate:g} Hz exceed the limits ({MAX_SOURCE_FRAMES} frames, "
+                                f"{MAX_DURATION_S:.0f} s)")
+    if pts.shape[0] < 3:
+        raise MotionImportError(path, "marker data has fewer than 3 coordinates")
     xyz = np.transpose(pts[:3], (2, 1, 0))  # [F, M, 3]
-    xyz[np.transpose(residuals[0] < 0) if residuals.size else np.zeros(xyz.shape[:2], bool)] = np.nan
-    xyz[~np.isfinite(xyz).all(axis=2)] = np.nan
+    if residuals.shape[-2:] == xyz.shape[1::-1] and residuals.ndim == 3:
+        xyz[np.transpose(residuals[0] < 0)] = np.nan  # a negative residual marks an invalid sample
+    with np.errstate(invalid="ignore"):
+        xyz[~np.isfinite(xyz).all(axis=2)] = np.nan
     out = {}
     for k, lab in enumerate(labels[:xyz.shape[1]]):
         name = lab.split(":")[-1].strip().upper()
@@ -202,21 +267,26 @@ def read_c3d(path, *, units=None, up=None, max_gap_s: float = MAX_GAP_S, on_long
         unit_name = file_units.strip().lower()
         scale = parse_units(unit_name)
     up_axis = up or guess_up(0.5 * (markers["LFHD"] + markers["RFHD"]), 0.5 * (markers["LANK"] + markers["RANK"]))
+    rough = float(np.nanmedian(np.linalg.norm(markers["LFWT"] - markers["LANK"], axis=1)))
     if scale is None:
-        rough = np.nanmedian(np.linalg.norm(markers["LFWT"] - markers["LANK"], axis=1))
-        unit_name = guess_units(float(rough))
+        unit_name = guess_units(rough)
         if unit_name is None:
             raise MotionImportError(path, "cannot guess the marker unit; pass units=")
         scale = parse_units(unit_name)
+    elif units is None and not LEG_RANGE_M[0] <= rough * scale <= LEG_RANGE_M[1]:
+        raise MotionImportError(path, f"hip-to-ankle marker distance is {rough * scale:.3g} m with the file's "
+                                f"POINT:UNITS {file_units.strip()!r} (expected {LEG_RANGE_M[0]}..{LEG_RANGE_M[1]} m): "
+                                "wrong units in the file? pass units=")
     c = up_rotation(up_axis) * scale
     needed = {k: markers[k] @ c.T for k in REQUIRED}
-    big = {k: v for k, v in needed.items() if np.abs(v).max() > 100.0}
-    if big:
-        k, v = next(iter(big.items()))
-        frame = int(np.argmax(np.abs(v).max(axis=1)))
-        raise MotionImportError(path, f"marker {k} is {np.abs(v).max():.3g} m from the origin: corrupted "
-                                "data or wrong units", frame=frame)
-    pts, frames = joint_centres(needed)
+    check_extent(path, needed)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pts, frames = joint_centres(needed)
+    for name, v in (*pts.items(), *frames.items()):
+        bad = ~np.isfinite(v).reshape(len(v), -1).all(axis=1)
+        if bad.any():
+            raise MotionImportError(path, f"{name}: degenerate marker geometry (coincident markers?)",
+                                    frame=int(np.argmax(bad)))
     info = {"format": "c3d", "rig": "c3d", "units": unit_name or f"{scale} m/unit", "metres_per_unit": scale,
             "up": up_axis, "source_frames": int(len(next(iter(markers.values())))),
             "markers": len(markers), "filled_gaps": filled, "max_gap_s": max_gap_s}

@@ -1,8 +1,10 @@
 """Errors raised by the motion importers."""
 from __future__ import annotations
 
+from processing.errors import InputError
 
-class MotionImportError(ValueError):
+
+class MotionImportError(InputError):
     """A motion file cannot be imported; the message names the file and the line or frame at fault."""
 
     def __init__(self, path, message: str, *, line: int | None = None, frame: int | None = None) -> None:

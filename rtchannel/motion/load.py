@@ -3,11 +3,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
+from processing.errors import one_line
+from rtchannel.errors import ConfigError
 from rtchannel.motion.errors import MotionImportError
 from rtchannel.motion.retarget import drop_leading_discontinuities, retarget
+from rtchannel.motion.source import check_fps, check_resampled_frames, parse_units, up_rotation
 from rtchannel.body.skeleton import Motion
 
 FORMATS = (".bvh", ".c3d")
+MAX_GAP_LIMIT_S = 10.0  # filling a longer marker gap by interpolation invents the motion
 
 
 def load_motion(path, *, fps: float | None = None, units=None, up: str | None = None,
@@ -33,8 +39,19 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
 
     Raises:
         MotionImportError: unreadable, truncated or corrupted file (message names file and line/frame).
+        ConfigError: an argument out of range (fps outside 10..2000 Hz or too many resampled frames,
+            unknown units or up axis, max_gap_s outside 0..10 s).
     """
     p = Path(path)
+    if fps is not None:
+        fps = check_fps(fps)
+    if up is not None:
+        up_rotation(up)  # ConfigError for anything but x, y, z, -x, -y, -z
+    parse_units(units)
+    if not (isinstance(max_gap_s, (int, float)) and 0 <= max_gap_s <= MAX_GAP_LIMIT_S):  # nan fails too
+        raise ConfigError(f"max_gap_s: must be a number of seconds in 0..{MAX_GAP_LIMIT_S:g}, got {max_gap_s!r}")
+    if on_long_gap not in ("error", "warn"):
+        raise ConfigError(f"on_long_gap: must be 'error' or 'warn', got {str(on_long_gap)[:40]!r}")
     ext = p.suffix.lower()
     if ext not in FORMATS:
         raise MotionImportError(p, f"unsupported motion file type {ext or '(none)'!r}; expected "
@@ -54,10 +71,19 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     if src.n_frames < 2:
         raise MotionImportError(p, "fewer than two usable frames")
     try:
-        motion = retarget(src, height=height, activity=activity, align=align, floor=floor)
+        with np.errstate(invalid="ignore", divide="ignore"):  # degenerate input is reported below, not warned
+            motion = retarget(src, height=height, activity=activity, align=align, floor=floor)
     except ValueError as exc:  # e.g. an implausible height
-        raise MotionImportError(p, str(exc)) from None
+        raise MotionImportError(p, one_line(exc)) from None
+    except KeyError as exc:  # the joint map of the detected rig names a joint the file lacks
+        raise MotionImportError(p, f"the {src.kind or 'detected'} skeleton lacks joint "
+                                f"{str(exc.args[0] if exc.args else '?')[:60]!r} (renamed or missing joint?)") from None
+    bad = ~(np.isfinite(motion.positions).all(axis=(1, 2)) & np.isfinite(motion.rotations).all(axis=(1, 2, 3)))
+    if bad.any():
+        raise MotionImportError(p, "retargeting gave non-finite joint positions (degenerate skeleton or markers: "
+                                "zero-length bones, coincident joints?)", frame=int(np.argmax(bad)))
     if fps is not None and fps != motion.fps:
+        check_resampled_frames(motion.duration, fps)
         motion = motion.resampled(fps)
     motion.params = {**motion.params, "file": str(p), "fps": float(motion.fps), "requested_height": height}
     return motion

@@ -28,6 +28,8 @@ Biomechanical sources for the numbers used:
 from __future__ import annotations
 
 import numpy as np
+from typing import Annotated
+
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from rtchannel.motion import kinematics as km
@@ -66,9 +68,12 @@ class ProceduralParams(BaseModel):
     duration: float | None = Field(None, gt=0, le=120, description="activity duration [s]")
     distance: float | None = Field(None, ge=0.5, le=200, description="walk distance [m]")
     step_length: float | None = Field(None, ge=0.2, le=1.6, description="walking step length [m]")
-    heading_deg: float = Field(0.0, description="facing/travel direction, deg counter-clockwise from +x")
-    start: tuple[float, float] = Field((0.0, 0.0), description="start of the hips' ground projection [m]")
-    seed: int = Field(0, ge=0, description="variation seed")
+    # bounds: a heading beyond +-10 turns or a start beyond 100 m (MAX_COORD_M, the largest capture volume)
+    # is a typo, and the seed is stored as a 64-bit integer in datasets and signature files
+    heading_deg: float = Field(0.0, ge=-3600, le=3600, description="facing/travel direction, deg counter-clockwise from +x")
+    start: tuple[Annotated[float, Field(ge=-100, le=100)], Annotated[float, Field(ge=-100, le=100)]] = Field(
+        (0.0, 0.0), description="start of the hips' ground projection [m]")
+    seed: int = Field(0, ge=0, le=2**63 - 1, description="variation seed")
     fps: float = Field(60.0, ge=10, le=2000, description="frame rate [Hz]")
     pad_before: float = Field(0.5, ge=0, le=30, description="quiet time before the activity [s]")
     pad_after: float = Field(0.5, ge=0, le=30, description="quiet time after the activity [s]")

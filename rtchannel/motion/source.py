@@ -5,9 +5,23 @@ named points [F, 3] and, where the format has them, global joint orientations [F
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from rtchannel.errors import ConfigError
+from rtchannel.motion.errors import MotionImportError
+
+# Limits of imported motion, each with its reason (docs/validation.md):
+MAX_COORD_M = 100.0  # capture volumes are < 100 m across: a point further out is corrupted data or wrong units
+MAX_ANGLE_DEG = 1e5  # ~280 turns; BVH angles may exceed 360 deg when unwrapped, but not by this much
+FILE_FPS_RANGE = (1.0, 10000.0)  # frame rates of motion files [Hz]: mocap systems run 24..2000 Hz
+FPS_RANGE = (10.0, 2000.0)  # frame rates a motion is resampled to [Hz] (as ProceduralParams.fps)
+MAX_DURATION_S = 3600.0  # one take; longer is a corrupted header (split long recordings)
+MAX_SOURCE_FRAMES = 200_000  # frames of one file (28 min at 120 Hz); memory ~ frames x joints x 100 B
+MAX_FRAMES = 200_000  # frames of a resampled motion: 31 joints x 96 B = 0.6 GB at the limit
+UNIT_RANGE_M = (1e-6, 1e3)  # metres per file unit accepted for units= (micrometre .. kilometre)
 
 # metres per file unit; "cmu" is the CMU/cgspeed BVH unit (1/0.45 inch)
 UNIT_SCALE = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "cmu": 0.0254 / 0.45}
@@ -57,12 +71,46 @@ def parse_units(units) -> float | None:
         return None
     if isinstance(units, str):
         if units.lower() not in UNIT_SCALE:
-            raise ValueError(f"unknown units {units!r}; use one of {', '.join(UNIT_SCALE)} or metres per unit")
+            raise ConfigError(f"units: unknown unit {units[:40]!r}; use one of {', '.join(UNIT_SCALE)} or metres "
+                              "per unit")
         return UNIT_SCALE[units.lower()]
-    scale = float(units)
-    if not scale > 0:
-        raise ValueError(f"units must be a positive number of metres per file unit, got {units}")
+    try:
+        scale = float(units)
+    except (TypeError, ValueError):
+        raise ConfigError(f"units: expected a unit name or metres per file unit, got {str(units)[:40]!r}") from None
+    if not UNIT_RANGE_M[0] <= scale <= UNIT_RANGE_M[1]:  # also refuses nan and inf
+        raise ConfigError(f"units: {scale:g} metres per file unit is outside {UNIT_RANGE_M[0]:g}..{UNIT_RANGE_M[1]:g}")
     return scale
+
+
+def check_fps(fps, what: str = "fps") -> float:
+    """`fps` [Hz] as a float if finite and within `FPS_RANGE`, else `ConfigError` naming `what`."""
+    try:
+        f = float(fps)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what}: expected a frame rate in Hz, got {str(fps)[:40]!r}") from None
+    if not FPS_RANGE[0] <= f <= FPS_RANGE[1]:
+        raise ConfigError(f"{what}: {f:g} Hz is outside {FPS_RANGE[0]:g}..{FPS_RANGE[1]:g} Hz")
+    return f
+
+
+def check_resampled_frames(duration_s: float, fps: float, what: str = "fps") -> int:
+    """Frame count of a `duration_s` motion resampled to `fps`; `ConfigError` above `MAX_FRAMES`."""
+    n = math.floor(duration_s * fps + 1e-9) + 1
+    if n > MAX_FRAMES:
+        raise ConfigError(f"{what}: {duration_s:.1f} s at {fps:g} Hz gives {n} frames, more than {MAX_FRAMES}")
+    return n
+
+
+def check_extent(path, points: dict[str, np.ndarray], line_of_frame=None) -> None:
+    """`MotionImportError` (file, frame and line) if any point [F, 3] (m) is non-finite or beyond `MAX_COORD_M`."""
+    for name, p in points.items():
+        bad = ~(np.abs(p) <= MAX_COORD_M).all(axis=1)  # nan compares False: caught too
+        if bad.any():
+            k = int(np.argmax(bad))
+            line = int(line_of_frame[k]) if line_of_frame is not None else None
+            raise MotionImportError(path, f"{name[:40]} is {np.abs(p[k]).max():.3g} m from the origin (limit "
+                                    f"{MAX_COORD_M:g} m): corrupted data or wrong units", line=line, frame=k)
 
 
 def guess_units(leg_length: float) -> str | None:
@@ -78,10 +126,10 @@ def up_rotation(up: str) -> np.ndarray:
 
     y up uses the project's convention for the seed's y-up data: (x, y, z) -> (x, -z, y).
     """
+    if not isinstance(up, str) or up.lstrip("+-").lower() not in _AXES or len(up) > 2:
+        raise ConfigError(f"up: must be one of x, y, z, -x, -y, -z; got {str(up)[:40]!r}")
     sign = -1.0 if up.startswith("-") else 1.0
     axis = up.lstrip("+-").lower()
-    if axis not in _AXES:
-        raise ValueError(f"up must be one of x, y, z, -x, -y, -z; got {up!r}")
     basis = {"z": np.eye(3), "y": np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]),
              "x": np.array([[0, 0, -1.0], [0, 1.0, 0], [1.0, 0, 0]])}[axis]
     if sign < 0:  # turn upside down about the forward (x) axis, keeping the frame right-handed

@@ -32,6 +32,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
 from rtchannel.scene.assets import scenes_dir
+from rtchannel.scene.sandbox import load_scene_string, read_scene_xml
 from rtchannel.body.meshgeom import closest_point_on_triangles
 
 SCENES: dict[str, Path] = {"room": scenes_dir() / "room.xml", "free_space": scenes_dir() / "free_space.xml"}
@@ -199,7 +200,7 @@ class RTScene:
         verts = np.asarray(body_vertices, dtype=np.float64)
         if verts.ndim != 2 or verts.shape[1] != 3 or self.body_faces.ndim != 2 or self.body_faces.shape[1] != 3:
             raise ValueError("body_vertices must be [V, 3] and body_faces [T, 3]")
-        xml = self.path.read_text()
+        xml = read_scene_xml(self.path)  # sandbox: only files under the allowed roots, one-line errors
         if re.search(r'id\s*=\s*"(mesh-)?body"', xml):
             raise ValueError(f"{self.path}: shape id 'body' is reserved for the avatar")
         end = xml.rfind("</scene>")
@@ -217,7 +218,8 @@ class RTScene:
             try:
                 mi.set_file_resolver(resolver)
                 # merge_shapes=False keeps one object per shape, so errors can name the nearest object.
-                self.sionna_scene = rt.load_scene_from_string(xml[:end] + body_xml + xml[end:], merge_shapes=False)
+                self.sionna_scene = load_scene_string(rt.load_scene_from_string, xml[:end] + body_xml + xml[end:],
+                                                      self.path, merge_shapes=False)
             finally:
                 mi.set_file_resolver(old)
         self.sionna_scene.frequency = self.frequency_hz

@@ -1,0 +1,32 @@
+"""The user-error types of the whole tool, collected in `USER_ERRORS`.
+
+Every one of them carries a one-line message naming the file and line/field at fault; the command line
+(`rtchannel.cli.main`) prints it after ``error:`` and exits with status 2. Any other exception is a bug.
+
+* `processing.errors.InputError` (a ValueError) and its subclasses:
+  `MotionImportError` (BVH/C3D files), `AncortekFormatError` (`.dat` recordings), `CheckpointError`,
+  `TrainingError`, `DatasetFormatError` (index/plan/shards), `PlanMismatchError`, `ConfigError`
+  (radar/plan/option files and values), `SceneFileError` (scene XML sandbox and Mitsuba load errors);
+* pydantic's `ValidationError` (a configuration field out of range; the CLI names the first field).
+
+Import-light on purpose (no numpy/torch/h5py): the CLI imports it before any command runs.
+"""
+from __future__ import annotations
+
+from pydantic import ValidationError
+
+from processing.errors import CheckpointError, DatasetFormatError, InputError, TrainingError
+
+
+class ConfigError(InputError):
+    """A configuration file or value that cannot be used (syntax, type, size or range)."""
+
+
+class SceneFileError(InputError):
+    """A scene file outside the sandbox, malformed, or rejected by Mitsuba (message never quotes file content)."""
+
+
+USER_ERRORS: tuple[type[BaseException], ...] = (InputError, ValidationError)
+
+__all__ = ["USER_ERRORS", "InputError", "ConfigError", "SceneFileError", "CheckpointError", "TrainingError",
+           "DatasetFormatError"]
