@@ -42,7 +42,7 @@ import numpy as np
 
 from processing.pathset import PathSet
 from rtchannel.backends.facet_assemble import assemble, link_gains, merge_batches
-from rtchannel.backends.surface_scattering import SurfaceMaterial
+from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases
 from rtchannel.backends.visibility import batch_visibility, caster_for, check_body_clearance
 from rtchannel.skinning import face_normals_and_areas
 
@@ -62,7 +62,8 @@ class LinkSpec:
 # link's strongest dropped (0.1 % of the power, ~15 % of the paths).
 DEFAULT_TRACE_FPS = 10.0
 DEFAULT_IMAGE_LOD = "2k"
-DEFAULT_MIN_RELATIVE_GAIN_DB = -40.0
+DEFAULT_MIN_RELATIVE_GAIN_DB = -50.0
+DEFAULT_DOUBLE_BOUNCE = "floor"
 
 
 def trace_frame_indices(n_frames: int, fps: float, trace_fps: float | None) -> np.ndarray:
@@ -95,9 +96,10 @@ def _unique_sources(links: list[LinkSpec]) -> tuple[np.ndarray, list[tuple[int, 
 
 def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray, velocities: np.ndarray | None,
                links: list[LinkSpec], wavelength: float, material: SurfaceMaterial, trace_idx=None,
-               walls=(), po: bool = False, min_relative_gain_db: float | None = None,
+               walls=(), po: bool = True, min_relative_gain_db: float | None = None,
                progress=None, timing: dict | None = None, batch_frames: int = 16,
-               image_mesh: tuple | None = None) -> dict[str, PathSet]:
+               image_mesh: tuple | None = None, seed: int | None = 0,
+               double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE) -> dict[str, PathSet]:
     """Facet path sets of any deforming triangle mesh (the engine behind `facet_paths`).
 
     Args:
@@ -113,7 +115,10 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         batch_frames: traced frames whose bodies share one BVH build (`visibility.FrameBatchCaster`).
         timing: optional dict; wall time [s] is added under "clearance", "bvh", "rays", "gains", "assemble".
         image_mesh: optional (vertices [K, Vc, 3], faces [Fc, 3], velocities or None) of a coarser mesh of
-            the same body (Fc <= F) on which the wall-image paths are traced instead (ids f_c + F (1 + 2w)).
+            the same body (Fc <= F) on which the wall-image paths are traced instead (ids f_c + F kind).
+        seed: seed of the fixed random diffuse phase per facet (`diffuse_phases`); None: no random phase.
+        double_bounce: double-bounce image paths (see `double_bounce_pairs`): False, True (= "same": both
+            antennas mirrored in the same wall, every wall), "pairs" (any two walls) or a wall name.
 
     Returns:
         {link name: persistent PathSet}; ids as in the module doc (F = number of faces).
@@ -146,10 +151,12 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         if len(f_c) > len(faces):
             raise ValueError(f"the image mesh has more faces ({len(f_c)}) than the mesh ({len(faces)})")
         meshes.append((np.asarray(v_c, float), np.asarray(f_c, np.int64), vel_c, False, True))
+    double = double_bounce_pairs(double_bounce, walls)
     parts = []
     for verts, fcs, vels, direct_paths, image_paths in meshes:
         found = _trace(scene, verts, fcs, trace_idx, sources, pairs, walls if image_paths else [], material,
-                       wavelength, po, batch_frames, direct_paths, clock, progress)
+                       wavelength, po, batch_frames, direct_paths, clock, progress, diffuse_phases(seed, len(fcs)),
+                       double if image_paths else [])
         parts.append((found, verts, vels, fcs))
     out = {link.name: assemble([(p[0][li],) + p[1:] for p in parts], link.name, sources[pairs[li][0]],
                                sources[pairs[li][1]], walls, times, trace_idx, len(faces), min_relative_gain_db)
@@ -158,8 +165,29 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     return out
 
 
+def double_bounce_pairs(double_bounce: bool | str | None, walls) -> list[tuple[int, int]]:
+    """(tx wall, rx wall) index pairs of the double-bounce paths: False/None/"off" none; True/"same" each
+    wall with itself (tx -> wall -> facet -> same wall -> rx); "pairs" every ordered pair of walls; a wall
+    name: that wall with itself."""
+    n = len(walls)
+    if double_bounce in (False, None, "off"):
+        return []
+    if double_bounce in (True, "same"):
+        return [(w, w) for w in range(n)]
+    if double_bounce == "pairs":
+        return [(a, b) for a in range(n) for b in range(n)]
+    names = [getattr(w, "name", None) for w in walls]
+    if isinstance(double_bounce, str) and double_bounce in names:
+        w = names.index(double_bounce)
+        return [(w, w)]
+    if isinstance(double_bounce, str) and not walls:
+        return []  # a named wall in a scene without walls (e.g. free space): nothing to bounce on
+    raise ValueError(f"double_bounce must be true, false, 'same', 'pairs' or a wall name {names}, "
+                     f"got {double_bounce!r}")
+
+
 def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, wavelength, po, batch_frames,
-           direct_paths, clock, progress) -> list[dict]:
+           direct_paths, clock, progress, phases, double) -> list[dict]:
     """Visibility and gains at the traced frames of one mesh, batch by batch (one BVH build each)."""
     caster = caster_for(scene, faces, vertices, sources, min(batch_frames, len(trace_idx)))
     batches = []
@@ -170,10 +198,12 @@ def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, w
         v = vertices[frames]
         normals, areas, degenerate = face_normals_and_areas(v, faces)
         cent = v[:, faces].mean(axis=2)
-        vis = batch_visibility(caster, cent, normals, ~degenerate, sources, walls, pairs)
+        vis = batch_visibility(caster, cent, normals, ~degenerate, sources, walls, pairs,
+                               {w for pair in double for w in pair})
         clock("rays")
         batches.append(link_gains(vis, pairs, sources, walls, start, cent, normals, areas,
-                                  lambda b, f: v[b[:, None], faces[f]], material, wavelength, po, direct_paths))
+                                  lambda b, f: v[b[:, None], faces[f]], material, wavelength, po, phases,
+                                  direct_paths, double=double))
         clock("gains")
         if progress is not None:
             progress(start + len(frames))
@@ -196,10 +226,11 @@ class _Clock:
 
 
 def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float | None = DEFAULT_TRACE_FPS,
-                walls: bool = True, po: bool = False, skin=None,
+                walls: bool = True, po: bool = True, skin=None,
                 min_relative_gain_db: float | None = DEFAULT_MIN_RELATIVE_GAIN_DB,
                 progress=None, velocity_method: str = "spline", timing: dict | None = None,
-                batch_frames: int = 16, image_lod: str | None = DEFAULT_IMAGE_LOD) -> dict[str, PathSet]:
+                batch_frames: int = 16, image_lod: str | None = DEFAULT_IMAGE_LOD, seed: int | None = 0,
+                double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE) -> dict[str, PathSet]:
     """Persistent facet path sets (one per link) of the skinned avatar moving with `motion`.
 
     The defaults are the fast setting (see `DEFAULT_TRACE_FPS`); ``trace_fps=None, image_lod=None,
@@ -224,10 +255,13 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
             and "assemble".
         image_lod: LOD on which the wall-image paths are traced (None: `lod`); a coarser one (e.g. "2k")
             gives ~5x fewer image paths with the same power (diffuse gains are area-weighted), while the
-            direct paths keep `lod`. Image ids are then f_c + F (1 + image index), f_c a coarse facet.
+            direct paths keep `lod`. Image ids are then f_c + F kind, f_c a coarse facet.
+        seed: seed of the fixed random phase of each facet's diffuse field (None: no random phase).
+        double_bounce: double-bounce wall paths (tx and rx both mirrored): True (each wall with itself),
+            False, "pairs" (every pair of walls) or one wall's name (e.g. "floor").
 
     Returns:
-        {link name: PathSet} with ids f (direct) and f + F (1 + image index) (wall images).
+        {link name: PathSet} with ids f + F kind, kind as in the module doc (0 direct, 1.. wall images).
 
     Raises:
         rtchannel.rt_scene.RadarPlacementError: an antenna closer than 1 cm to the geometry.
@@ -264,10 +298,10 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     return mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material,
                       trace_frame_indices(motion.n_frames, motion.fps, trace_fps),
                       rt.walls if walls else (), po, min_relative_gain_db, progress, timing, batch_frames,
-                      image_mesh)
+                      image_mesh, seed, double_bounce)
 
 
-def rcs_backend(skin=None, po: bool = True):
+def rcs_backend(skin=None, po: bool = True, seed: int | None = 0):
     """A `rtchannel.backends.rcs.BackendFn` for static calibration targets in free space: facets of the
     mesh with `skin` (an `rtchannel.rt_scene.SkinMaterial`, e.g. `rcs.PEC`; default dry skin) as
     material, diffuse plus (if `po`) physical optics. Gains are in the synthesiser's convention, so
@@ -280,6 +314,6 @@ def rcs_backend(skin=None, po: bool = True):
         links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos) for lk in radar.links]
         v = np.stack([vertices, vertices])
         return mesh_paths(scene, np.array([0.0, 0.1]), v, faces, None, links, wf.wavelength,
-                          SurfaceMaterial.from_skin(scene.skin, wf.carrier_hz), po=po)
+                          SurfaceMaterial.from_skin(scene.skin, wf.carrier_hz), po=po, seed=seed)
 
     return run

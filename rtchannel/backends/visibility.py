@@ -74,12 +74,13 @@ class BatchVisibility:
     images: dict
 
 
-def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs) -> BatchVisibility:
+def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, every_facet=()) -> BatchVisibility:
     """Visibility of facets (centroids, normals [B, F, 3], usable [B, F]) of the frames loaded in
     `caster`'s cells 0..B-1 from `sources` [S, 3] (m), directly and through `walls`.
 
     pairs: (tx source, rx source) of each link; image legs are traced only for facets visible directly
-    from the other end of some link."""
+    from the other end of some link, except through the walls indexed in `every_facet` (double-bounce
+    paths need a facet seen through two images, whether or not an antenna sees it directly)."""
     n_b, n_f = usable.shape
     direct = np.zeros((len(sources), n_b, n_f), bool)
     parts = []
@@ -108,7 +109,8 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs) 
                 continue
             image = mirror(pos, wall)
             h_c = (centroids - wall.point) @ nw
-            b, f = np.nonzero(needed[s] & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
+            need = usable if w in every_facet else needed[s]
+            b, f = np.nonzero(need & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
             c = centroids[b, f]
             frac = h_c[b, f] / (h_c[b, f] + h_src)
             q = c + frac[:, None] * (image - c)
