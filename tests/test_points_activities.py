@@ -4,7 +4,7 @@ import pytest
 from scipy.signal import find_peaks
 
 from processing.waveform import C0
-from rtchannel.backends.points import point_paths
+from rtchannel.backends.points import BODY_RCS_M2, point_paths
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.simulate import simulate
@@ -27,7 +27,7 @@ def test_point_delays_are_exact_geometry():
     # radar scale: P_r/P_t = lambda^2 sigma / ((4 pi)^3 R^4) with the head's share of the body RCS
     r = np.linalg.norm(pos - [3, 0, 1.1], axis=1)
     lam = radar.waveform.wavelength
-    expected = lam ** 2 * np.abs(seed.gains[0, 0]) ** 2 * 0.5 / ((4 * np.pi) ** 3 * r ** 4)
+    expected = lam ** 2 * np.abs(seed.gains[0, 0]) ** 2 * BODY_RCS_M2 / ((4 * np.pi) ** 3 * r ** 4)
     np.testing.assert_allclose(np.abs(paths["mono"].gains[:, 0]) ** 2, expected, rtol=1e-12)
 
 

@@ -236,3 +236,35 @@ def test_double_bounce_switch_removes_exactly_its_paths():
         assert len(set(kinds[double])) >= 3 and np.any(kinds == double_kind(w_floor, w_floor, n_w))
         np.testing.assert_array_equal(on[name].ids[~double], off[name].ids)
         np.testing.assert_array_equal(on[name].gains[:, ~double], off[name].gains)
+
+
+def test_double_bounce_wall_selection():
+    from rtchannel.backends.facets import double_bounce_pairs
+
+    def wall(name, z, normal):
+        return PlanarWall(name, point=np.array([0.0, 0.0, z]), normal=np.asarray(normal, float),
+                          polygon=np.zeros((3, 3)), relative_permittivity=5.0)
+    walls = [wall("side", 1.5, [1, 0, 0]), wall("table", 0.7, [0, 0, 1]), wall("ground", 0.0, [0, 0, 1])]
+    assert double_bounce_pairs("floor", walls) == [(2, 2)]  # the lowest upward-facing plane, whatever its name
+    assert double_bounce_pairs("floor", walls[:1]) == []  # no floor: no floor double bounce
+    assert double_bounce_pairs(True, walls) == [(0, 0), (1, 1), (2, 2)]
+    assert len(double_bounce_pairs("pairs", walls)) == 9 and double_bounce_pairs(False, walls) == []
+    assert double_bounce_pairs("table", walls) == [(1, 1)]
+    with pytest.raises(ValueError, match="double_bounce"):
+        double_bounce_pairs("ceiling", walls)
+
+
+@pytest.mark.parametrize("eta, thickness", [(5.24 - 0.4j, 0.2), (5.24 - 0.4j, 0.0), (3.0 - 0.01j, 0.01), (None, 0.0)])
+def test_compiled_wall_factor_matches_the_reference_maths(eta, thickness):
+    from rtchannel.backends.surface_scattering import co_polar_reflection, te_fraction, wall_factor
+
+    w = PlanarWall("w", point=np.zeros(3), normal=np.array([0.6, 0.0, 0.8]), polygon=np.zeros((3, 3)),
+                   relative_permittivity=eta, thickness=thickness)
+    rng = np.random.default_rng(1)
+    k = rng.normal(size=(1000, 3))
+    k /= np.linalg.norm(k, axis=1, keepdims=True)
+    cos_w = np.abs(k @ w.normal)
+    e = None if eta is None else complex(eta)
+    ref = np.conj(co_polar_reflection(*slab_reflection(cos_w, e, thickness or None, 0.0124),
+                                      te_fraction(k, np.broadcast_to(w.normal, k.shape))))
+    np.testing.assert_allclose(wall_factor(w, cos_w, k, 0.0124), ref, rtol=0, atol=1e-14)  # |Gamma| <= 1

@@ -74,21 +74,31 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, 
                 b, f, cos1, cos2 = b[i1], f[i1], cos1[i1], cos2[i2]
             fams.append((double_kind(w1, w2, n_w), b, f, mirror(tx, walls[w1]), mirror(rx, walls[w2]),
                          [(walls[w1], cos1, tx), (walls[w2], cos2, rx)], mono and w1 != w2))
+        fams = [fam for fam in fams if fam[1].size]
         found = {}
-        for kind, b, f, p_a, p_b, via, twin in fams:
-            if b.size == 0:
-                continue
+        if fams:  # one gather and one compiled call for all kinds of the link
+            sizes = [fam[1].size for fam in fams]
+            b, f = np.concatenate([fam[1] for fam in fams]), np.concatenate([fam[2] for fam in fams])
+            p_a = np.concatenate([np.broadcast_to(fam[3], (k, 3)) for fam, k in zip(fams, sizes)])
+            p_b = np.concatenate([np.broadcast_to(fam[4], (k, 3)) for fam, k in zip(fams, sizes)])
+            twin = np.repeat([fam[6] for fam in fams], sizes)
             c, n, a = cent[b, f], norm[b, f], area[b, f]
             corners = corners_of(b, f) if po else None
             ph = None if phases is None else phases[f]  # the facet's own surface phase on every path
             g = facet_gains(material, wavelength, c, n, a, corners, p_a, p_b, po, ph)
-            if twin:  # monostatic: add the reverse path (same delay and visibility)
-                g = g + facet_gains(material, wavelength, c, n, a, corners, p_b, p_a, po, ph)
-            for wall, cos_w, ant in via:
-                q_dir = mirror(c, wall) - ant  # antenna -> mirrored centroid: through the reflection point
-                q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
-                g = g * wall_factor(wall, cos_w, q_dir, wavelength)
-            found[kind] = (b + slot0, f, g)
+            if twin.any():  # monostatic: add the reverse path (same delay and visibility)
+                t = np.flatnonzero(twin)
+                g[t] += facet_gains(material, wavelength, c[t], n[t], a[t], None if corners is None else corners[t],
+                                    p_b[t], p_a[t], po, None if ph is None else ph[t])
+            at = 0
+            for (kind, bk, fk, _, _, via, _), k in zip(fams, sizes):
+                gk = g[at:at + k]
+                for wall, cos_w, ant in via:
+                    q_dir = mirror(c[at:at + k], wall) - ant  # antenna -> mirrored centroid: via the reflection point
+                    q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
+                    gk = gk * wall_factor(wall, cos_w, q_dir, wavelength)
+                found[kind] = (bk + slot0, fk, gk)
+                at += k
         out.append(found)
     return out
 
