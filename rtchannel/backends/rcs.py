@@ -20,7 +20,7 @@ Closed forms used by the tests (optical region, target size >> lambda):
 Body RCS over a walk (`walk_body_rcs`, the calibration of the `points` backend's whole-body RCS against
 the `facets` default): monostatic radars at a fixed distance around a short procedural walk in free space;
 per frame, every path is scaled by its own range, sigma_p = (4 pi)^3 R_p^4 |a_p|^2 / lambda^2 with R_p =
-c0 tau_p / 2, and the paths are summed coherently with the synthiser's phase exp(+j 2 pi f tau) (the RCS
+c0 tau_p / 2, and the paths are summed coherently with the synthesiser's phase exp(+j 2 pi f tau) (the RCS
 the radar sees in that frame) and in power (incoherent); both are averaged in power over the frames.
 Run ``python -m rtchannel.backends.rcs`` for the table behind `rtchannel.backends.points.BODY_RCS_M2`.
 """
@@ -91,7 +91,8 @@ def frame_rcs(ps: PathSet, frequency_hz: float) -> tuple[np.ndarray, np.ndarray]
     lam = C0 / frequency_hz
     on = ps.gains != 0
     tau = np.where(on, ps.delays, 0.0)
-    s = np.where(on, ps.gains * (C0 * tau / 2) ** 2 * (4 * np.pi) ** 1.5 / lam * np.exp(2j * np.pi * frequency_hz * tau), 0)
+    root_sigma = ps.gains * (C0 * tau / 2) ** 2 * (4 * np.pi) ** 1.5 / lam  # sqrt(sigma_p) up to phase
+    s = np.where(on, root_sigma * np.exp(2j * np.pi * frequency_hz * tau), 0)
     return np.abs(s.sum(axis=1)) ** 2, np.sum(np.abs(s) ** 2, axis=1)
 
 

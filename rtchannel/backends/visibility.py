@@ -8,9 +8,11 @@ occluders (other body triangles, walls, furniture) can block it:
   (`wall_images.reflection_points`), is visible when both q -> centroid and antenna -> q are free.
 
 Image legs are only traced for facets the caller still needs (those visible directly from the other
-end of some link), which halves the ray count. The rays of every traced frame of a BVH batch (see
-`FrameBatchCaster`) go to Mitsuba in two calls: all direct rays, then all image legs; casting is cheap
-(~3e7 rays/s), so the Python/numpy work around it is kept vectorised over frames and facets.
+end of some link), which halves the ray count; through walls with double-bounce paths (both
+antennas mirrored) every facet facing the image is traced, as such a path needs no direct line of
+sight. The rays of every traced frame of a BVH batch (see `FrameBatchCaster`) go to Mitsuba in two
+calls: all direct rays, then all image legs; casting is cheap (~3e7 rays/s), so the Python/numpy work
+around it is kept vectorised over frames and facets.
 
 The scene is an `rtchannel.rt_scene.RTScene` (or anything with ``mi_scene`` or a ``cast`` method).
 """
