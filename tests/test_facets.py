@@ -6,7 +6,7 @@ from processing.receiver import noise_power_per_sample
 from processing.waveform import C0
 from rtchannel.body.avatar import load_avatar
 from rtchannel.backends.facets import LinkSpec, facet_paths, mesh_paths, trace_frame_indices
-from rtchannel.backends.surface_scattering import SurfaceMaterial
+from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import RadarPlacementError, RTScene, get_scene
@@ -148,3 +148,44 @@ def test_antenna_inside_the_body_path_is_rejected():
     m = generate("walk", duration=2.5, start=(1.0, 0.0))  # walks through the radar at x = 3 m
     with pytest.raises(RadarPlacementError, match="the body at t"):
         facet_paths(m, _radar(Link(name="r", tx=(3.0, 0.0, 1.1))), scene="free_space", lod=LOD, walls=False)
+
+
+def test_diffuse_phases_are_seeded_fixed_per_facet_and_shared_by_its_paths():
+    m = _motion(6)
+    radar = _radar()
+    n_faces = load_avatar(LOD).n_faces
+    # Diffuse only (po=False): each gain is real and positive times the wall factors times its facet's
+    # phase, so the ratio of two seeds is the facet's phase ratio on every path and in every frame.
+    opts = dict(scene="room", lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None, po=False,
+                double_bounce=True)
+    a = facet_paths(m, radar, seed=0, **opts)["r"]
+    b = facet_paths(m, radar, seed=1, **opts)["r"]
+    assert np.array_equal(a.gains, facet_paths(m, radar, seed=0, **opts)["r"].gains)  # same seed, same gains
+    assert np.array_equal(a.ids, b.ids) and np.array_equal(a.gains != 0, b.gains != 0)
+    on = a.gains != 0
+    f = a.ids % n_faces
+    ph0, ph1 = diffuse_phases(0, n_faces), diffuse_phases(1, n_faces)
+    kinds = np.broadcast_to(a.ids // n_faces, a.gains.shape)[on]
+    assert len(np.unique(kinds)) > 5  # direct, single and double bounce paths
+    np.testing.assert_allclose(b.gains[on] / a.gains[on], np.broadcast_to(ph1[f] / ph0[f], a.gains.shape)[on],
+                               rtol=1e-9)
+    np.testing.assert_allclose(np.abs(b.gains), np.abs(a.gains), rtol=1e-12)  # the same power per path
+    assert np.std(np.angle(b.gains[on] / a.gains[on])) > 1.0  # really different phases (uniform: 1.81 rad)
+    # The direct path of a moving facet has its facet's phase in every frame (Doppler stays coherent).
+    direct = a.ids < n_faces
+    g = a.gains[:, direct]
+    seen = g != 0
+    assert seen.sum() > 3 * direct.sum()
+    np.testing.assert_allclose((g / np.abs(np.where(seen, g, 1)))[seen],
+                               np.broadcast_to(ph0[a.ids[direct]], g.shape)[seen], rtol=0, atol=1e-12)
+    # The coarse image mesh has its own seeded phases (stream (seed, its number of faces)), shared by its paths.
+    m2 = _motion(2)
+    coarse = facet_paths(m2, radar, scene="room", lod="5k", image_lod="2k", trace_fps=None, min_relative_gain_db=None,
+                         po=False, seed=3)["r"]
+    coarse1 = facet_paths(m2, radar, scene="room", lod="5k", image_lod="2k", trace_fps=None, min_relative_gain_db=None,
+                          po=False, seed=4)["r"]
+    n5, n2 = load_avatar("5k").n_faces, n_faces
+    img = (coarse.ids >= n5) & (coarse.gains[0] != 0)
+    fc = coarse.ids[img] % n5
+    np.testing.assert_allclose(coarse1.gains[0, img] / coarse.gains[0, img],
+                               diffuse_phases(4, n2)[fc] / diffuse_phases(3, n2)[fc], rtol=1e-9)

@@ -3,7 +3,9 @@
 The RCS is read back from the path set through the monostatic radar equation,
 sigma = (4 pi)^3 R^4 |sum|^2 / lambda^2, with the radar R = 100 m away (far field of the 0.2 m targets:
 2 D^2 / lambda = 6.5 m). Coherent sums use the synthesiser's phase exp(+j 2 pi f tau); the diffuse model
-is checked on the power (incoherent) sum, the quantity Sionna's diffuse model defines.
+is checked on the power (incoherent) sum, the quantity Sionna's diffuse model defines. Diffuse facets carry
+a fixed random phase each (`diffuse_phases`), so their coherent sum is random: it is checked through its
+expectation over seeds (equal to the power sum); the PO checks use S = 0 (no diffuse part).
 """
 import numpy as np
 import pytest
@@ -23,12 +25,12 @@ PEC_PO = SurfaceMaterial(eta=None, scattering_coefficient=0.0)  # pure physical 
 PEC_DIFFUSE = SurfaceMaterial(eta=None, scattering_coefficient=1.0)  # pure Lambertian diffuse, |Gamma| = 1
 
 
-def _rcs(vertices, faces, material, po):
-    scene = RTScene("free_space", faces, vertices, F0)
+def _rcs(vertices, faces, material, po, seed=0, scene=None):
+    scene = RTScene("free_space", faces, vertices, F0) if scene is None else scene
     tx = np.array([R, 0.0, 0.0])
     v = np.stack([vertices, vertices])
     ps = mesh_paths(scene, np.array([0.0, 0.1]), v, faces, None, [LinkSpec("l", tx, tx)], LAM, material,
-                    po=po)["l"]
+                    po=po, seed=seed)["l"]
     g, tau = ps.gains[0], ps.delays[0]
     on = g != 0
     k = (4 * np.pi) ** 3 * R ** 4 / LAM ** 2
@@ -65,9 +67,23 @@ def test_plate_diffuse_gives_its_own_closed_form():
     v, f = plate_mesh(0.2, 0.2, 8)
     coherent, incoherent, _ = _rcs(v, f, PEC_DIFFUSE, po=False)
     assert incoherent == pytest.approx(diffuse_plate_rcs(0.04, 1.0), rel=1e-4)  # every facet at theta = 0
-    # Summed coherently the equal-phase diffuse facets add up N times the power: the diffuse model is a
-    # power model, not a coherent one (documented; Sionna's diffuse paths behave alike).
+    # Without the random surface phase (seed None) the equal-phase diffuse facets add up N times the
+    # power: the coherent sum would grow with the mesh resolution.
+    coherent, _, _ = _rcs(v, f, PEC_DIFFUSE, po=False, seed=None)
     assert coherent == pytest.approx(len(f) * diffuse_plate_rcs(0.04, 1.0), rel=1e-3)
+
+
+def test_plate_diffuse_coherent_power_expectation_is_the_power_sum():
+    # With independent uniform phases E|sum a_f e^{j phi_f}|^2 = sum |a_f|^2 whatever the mesh. For N equal
+    # terms |sum|^2 / (N a^2) has mean 1 and variance 1 - 1/N, so the mean of 100 seeds has a standard
+    # deviation of 0.1: +-0.35 is 3.5 sigma. The power sum itself does not depend on the seed.
+    v, f = plate_mesh(0.2, 0.2, 4)
+    scene = RTScene("free_space", f, v, F0)
+    runs = np.array([_rcs(v, f, PEC_DIFFUSE, po=False, seed=s, scene=scene)[:2] for s in range(100)])
+    closed = diffuse_plate_rcs(0.04, 1.0)
+    np.testing.assert_allclose(runs[:, 1], closed, rtol=1e-4)
+    assert np.mean(runs[:, 0]) == pytest.approx(closed, rel=0.35)
+    assert np.std(runs[:, 0]) > 0.5 * closed  # really random (an equal-phase sum would give 32 x closed)
 
 
 def test_sphere_po_and_diffuse_closed_forms():
@@ -109,3 +125,33 @@ def test_compiled_lambertian_gains_match_the_reference_maths(mat):
     got = lambertian_gains(mat, LAM, c, n, area, np.broadcast_to(p_a, c.shape), p_b)
     assert np.count_nonzero(ref) > 50
     np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-30)  # same maths, different evaluation order
+
+
+@pytest.mark.parametrize("mat", [SurfaceMaterial(eta=18.9 - 17.1j, scattering_coefficient=0.5, thickness=0.05),
+                                 SurfaceMaterial(eta=None, scattering_coefficient=0.0)])
+def test_compiled_po_gains_match_the_reference_maths(mat):
+    from rtchannel.backends.surface_scattering import (co_polar_reflection, facet_gains, po_sqrt_rcs,
+                                                       slab_reflection, te_fraction)
+    rng = np.random.default_rng(11)
+    n_el = 2000
+    # Triangles from 0.1 mm (the Taylor branch of the integral) to 5 cm (many wavelengths) across.
+    corners = rng.normal(size=(n_el, 1, 3)) + rng.normal(size=(n_el, 3, 3)) * 10 ** rng.uniform(-4, -1.3, (n_el, 1, 1))
+    c = corners.mean(axis=1)
+    cr = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    area = 0.5 * np.linalg.norm(cr, axis=1)
+    n = cr / (2 * area[:, None])
+    p_a, p_b = np.array([3.0, 0.5, 1.1]), rng.normal(size=(n_el, 3)) * 3
+    p_b[::3] = p_a  # monostatic ones take the compiled shortcut (bisector = incidence)
+    ra, rb = np.linalg.norm(c - p_a, axis=1), np.linalg.norm(c - p_b, axis=1)
+    k_i, u_b = (c - p_a) / ra[:, None], (p_b - c) / rb[:, None]
+    half = -k_i + u_b
+    cos_b = np.sum(n * half, axis=1) / np.linalg.norm(half, axis=1)
+    rho = -co_polar_reflection(*slab_reflection(cos_b, mat.eta, mat.thickness, LAM), te_fraction(k_i, n))
+    ref_po = (np.sqrt(1 - mat.scattering_coefficient ** 2) * LAM / ((4 * np.pi) ** 1.5 * ra * rb)
+              * po_sqrt_rcs(corners, -k_i, u_b, n, rho, LAM))
+    ref = facet_gains(mat, LAM, c, n, area, corners, p_a, p_b, False) + ref_po
+    got = facet_gains(mat, LAM, c, n, area, corners, p_a, p_b, True)
+    assert np.count_nonzero(ref_po) > 500
+    # Same maths; the compiled integral uses exp[jp, jq] = exp(j (p + q) / 2) sinc((q - p) / 2), whose
+    # rounding differs by ~1e-16 x the largest phase (~30 rad here) relative to the facet's area.
+    np.testing.assert_allclose(got, ref, rtol=1e-11, atol=1e-12 * np.abs(ref).max())

@@ -16,20 +16,43 @@ from rtchannel.backends.surface_scattering import facet_gains, wall_factor
 from rtchannel.backends.wall_images import mirror
 
 
+def kind_walls(kind: int, n_walls: int) -> tuple[int, int]:
+    """(wall of the tx image, wall of the rx image) of a path kind, -1 for none (see `facets` for the ids):
+    0 direct; 1 + 2w tx image in wall w; 2 + 2w rx image; 1 + 2W + w both in wall w (double bounce);
+    1 + 3W + W w1 + w2 (w1 != w2) tx image in w1 and rx image in w2 (cross double bounce)."""
+    if kind == 0:
+        return -1, -1
+    if kind <= 2 * n_walls:
+        w = (kind - 1) // 2
+        return (w, -1) if kind % 2 else (-1, w)
+    if kind <= 3 * n_walls:
+        return kind - 1 - 2 * n_walls, kind - 1 - 2 * n_walls
+    j = kind - 1 - 3 * n_walls
+    return j // n_walls, j % n_walls
+
+
+def double_kind(w_tx: int, w_rx: int, n_walls: int) -> int:
+    """Path kind of the double bounce with the tx image in wall w_tx and the rx image in wall w_rx."""
+    return 1 + 2 * n_walls + w_tx if w_tx == w_rx else 1 + 3 * n_walls + n_walls * w_tx + w_rx
+
+
 def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, material, wavelength, po,
-               direct_paths: bool = True, image_paths: bool = True) -> list[dict]:
+               phases=None, direct_paths: bool = True, image_paths: bool = True, double=()) -> list[dict]:
     """Per link {kind: (slot [N], facet [N], gain [N] complex)} of one batch of traced frames.
 
     vis: `visibility.BatchVisibility` of the batch; slot0: slot of its first frame; cent, norm [B, F, 3],
-    area [B, F]: facet geometry; corners_of(b, f): [N, 3, 3] corners (used with `po`)."""
+    area [B, F]: facet geometry; corners_of(b, f): [N, 3, 3] corners (used with `po`); phases: diffuse
+    phase factors [F] of this mesh or None; double: (tx wall, rx wall) index pairs of the double-bounce
+    paths to form."""
+    n_w = len(walls)
     out = []
     for s_tx, s_rx in pairs:
         tx, rx = sources[s_tx], sources[s_rx]
         mono = s_tx == s_rx
-        fams = []
+        fams = []  # (kind, b, f, p_a, p_b, [(wall, cos_w, antenna)], monostatic twin to add)
         if direct_paths:
             b, f = np.nonzero(vis.direct[s_tx] & vis.direct[s_rx])
-            fams.append((0, b, f, tx, rx, None))
+            fams.append((0, b, f, tx, rx, [], False))
         for w, wall in enumerate(walls if image_paths else ()):
             for kind, s_img, s_other, ant in ((1 + 2 * w, s_tx, s_rx, tx), (2 + 2 * w, s_rx, s_tx, rx)):
                 if (kind % 2 == 0 and mono) or (s_img, w) not in vis.images:
@@ -38,22 +61,44 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, 
                 keep = vis.direct[s_other][b, f]
                 img = mirror(sources[s_img], wall)
                 p_a, p_b = (img, rx) if kind % 2 else (tx, img)
-                fams.append((kind, b[keep], f[keep], p_a, p_b, (wall, cos_w[keep], ant, mono and kind % 2 == 1)))
+                fams.append((kind, b[keep], f[keep], p_a, p_b, [(wall, cos_w[keep], ant)], mono and kind % 2 == 1))
+        for w1, w2 in (double if image_paths else ()):
+            if (mono and w2 < w1) or (s_tx, w1) not in vis.images or (s_rx, w2) not in vis.images:
+                continue  # monostatic: (w2, w1) is merged into (w1, w2)
+            b, f, cos1 = vis.images[(s_tx, w1)]
+            cos2 = cos1
+            if (s_rx, w2) != (s_tx, w1):  # facets seen through both images
+                b2, f2, cos2 = vis.images[(s_rx, w2)]
+                n_f = cent.shape[1]
+                _, i1, i2 = np.intersect1d(b * n_f + f, b2 * n_f + f2, assume_unique=True, return_indices=True)
+                b, f, cos1, cos2 = b[i1], f[i1], cos1[i1], cos2[i2]
+            fams.append((double_kind(w1, w2, n_w), b, f, mirror(tx, walls[w1]), mirror(rx, walls[w2]),
+                         [(walls[w1], cos1, tx), (walls[w2], cos2, rx)], mono and w1 != w2))
+        fams = [fam for fam in fams if fam[1].size]
         found = {}
-        for kind, b, f, p_a, p_b, via in fams:
-            if b.size == 0:
-                continue
+        if fams:  # one gather and one compiled call for all kinds of the link
+            sizes = [fam[1].size for fam in fams]
+            b, f = np.concatenate([fam[1] for fam in fams]), np.concatenate([fam[2] for fam in fams])
+            p_a = np.concatenate([np.broadcast_to(fam[3], (k, 3)) for fam, k in zip(fams, sizes)])
+            p_b = np.concatenate([np.broadcast_to(fam[4], (k, 3)) for fam, k in zip(fams, sizes)])
+            twin = np.repeat([fam[6] for fam in fams], sizes)
             c, n, a = cent[b, f], norm[b, f], area[b, f]
             corners = corners_of(b, f) if po else None
-            g = facet_gains(material, wavelength, c, n, a, corners, p_a, p_b, po)
-            if via is not None:
-                wall, cos_w, ant, merged = via
-                if merged:  # monostatic: add the twin tx -> f -> rx' (same delay and visibility)
-                    g = g + facet_gains(material, wavelength, c, n, a, corners, p_b, p_a, po)
-                q_dir = mirror(c, wall) - ant  # antenna -> mirrored centroid: the first leg
-                q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
-                g = g * wall_factor(wall, cos_w, q_dir, wavelength)
-            found[kind] = (b + slot0, f, g)
+            ph = None if phases is None else phases[f]  # the facet's own surface phase on every path
+            g = facet_gains(material, wavelength, c, n, a, corners, p_a, p_b, po, ph)
+            if twin.any():  # monostatic: add the reverse path (same delay and visibility)
+                t = np.flatnonzero(twin)
+                g[t] += facet_gains(material, wavelength, c[t], n[t], a[t], None if corners is None else corners[t],
+                                    p_b[t], p_a[t], po, None if ph is None else ph[t])
+            at = 0
+            for (kind, bk, fk, _, _, via, _), k in zip(fams, sizes):
+                gk = g[at:at + k]
+                for wall, cos_w, ant in via:
+                    q_dir = mirror(c[at:at + k], wall) - ant  # antenna -> mirrored centroid: via the reflection point
+                    q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
+                    gk = gk * wall_factor(wall, cos_w, q_dir, wavelength)
+                found[kind] = (bk + slot0, fk, gk)
+                at += k
         out.append(found)
     return out
 
@@ -114,11 +159,11 @@ def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db) -> 
         pa = np.broadcast_to(tx, (fidx.size, 3)).copy()  # path end points: antenna or its wall image
         pb = np.broadcast_to(rx, (fidx.size, 3)).copy()
         for kind in np.unique(kinds[kinds > 0]):
-            wall = walls[(kind - 1) // 2]
-            if kind % 2 == 1:
-                pa[kinds == kind] = mirror(tx, wall)
-            else:
-                pb[kinds == kind] = mirror(rx, wall)
+            w_tx, w_rx = kind_walls(int(kind), len(walls))
+            if w_tx >= 0:
+                pa[kinds == kind] = mirror(tx, walls[w_tx])
+            if w_rx >= 0:
+                pb[kinds == kind] = mirror(rx, walls[w_rx])
         c0 = sum(i.size for i in all_ids)
         sl = slice(c0, c0 + fidx.size)
         vel = np.asarray(vels, float) if has_vel else np.zeros((1, 1, 3))

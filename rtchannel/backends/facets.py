@@ -1,36 +1,56 @@
-"""The `facets` backend: deterministic scattering from every triangle of the skinned body mesh.
+"""The `facets` backend: scattering from every triangle of the skinned body mesh.
 
-Each body triangle f is a scatterer with a persistent identity. Per link (tx, rx) and frame:
+Each body triangle f is a scatterer with a persistent identity. Per link (tx, rx) and frame, with F the
+number of facets and W the number of planar walls (the floor is one), a path has id f + F kind:
 
-- direct path tx -> f -> rx (id f): delay (|c - tx| + |c - rx|) / c0 from the centroid c (float64), delay
+- kind 0, direct tx -> f -> rx: delay (|c - tx| + |c - rx|) / c0 from the centroid c (float64), delay
   rate v_c . (u_tx + u_rx) / c0 with v_c the centroid velocity (mean of the skinned vertex velocities,
   exact for linear blend skinning) and u the unit vectors antenna -> centroid;
-- first-order body-wall paths through image antennas mirrored in each planar wall (``walls=True``):
-  tx' -> f -> rx (id f + F (1 + 2w)) and tx -> f -> rx' (id f + F (2 + 2w)); for a monostatic link
-  (tx == rx) the two have the same delay and visibility and are merged into one path whose gain is the
-  sum of both (id f + F (1 + 2w)); they differ in gain only because Sionna's diffuse model evaluates the
-  Fresnel Gamma for the incident direction, which is not reciprocal.
+- first-order body-wall paths through image antennas mirrored in wall w (``walls=True``): kind 1 + 2w,
+  tx' -> f -> rx, and kind 2 + 2w, tx -> f -> rx'; for a monostatic link (tx == rx) the two have the same
+  delay and visibility and are merged into one path (kind 1 + 2w) whose gain is the sum of both (they
+  differ only because the diffuse model evaluates Gamma for the incident direction, not reciprocal);
+- double bounce, both antennas mirrored (``double_bounce``): kind 1 + 2W + w, tx' -> f -> rx' with both
+  images in wall w (tx -> w -> f -> w -> rx; monostatically one path per facet and wall), and, with
+  ``double_bounce="pairs"``, kind 1 + 3W + W w1 + w2 for tx mirrored in w1 and rx in w2 != w1 (merged
+  monostatically into w1 < w2 like the single-bounce twins). Each reflection point must lie on its wall
+  and both legs must be free (`visibility`); the gain carries both walls' reflection coefficients.
 
-Gain (common scale, `surface_scattering`): a = lambda sqrt(sigma_f) / ((4 pi)^1.5 r_tx r_rx) with
-sigma_f from Sionna RT's diffuse model for the skin material (scattering coefficient S, pattern,
-Fresnel Gamma of skin), plus, with ``po=True``, sqrt(1 - S^2) times the exact physical-optics integral
-over the triangle (the coherent, specular-like part Sionna reduces by R = sqrt(1 - S^2)). Image paths
-are multiplied by the wall's co-polar slab reflection coefficient at the reflection point.
+Gain (common scale, `surface_scattering`): a = lambda sqrt(sigma_f) / ((4 pi)^1.5 r_tx r_rx) on the
+(image) geometry, with sigma_f from Sionna RT's diffuse model for the skin material (scattering
+coefficient S, pattern, Fresnel Gamma of skin) times a fixed random phase per facet, plus (``po=True``,
+the default) sqrt(1 - S^2) times the exact physical-optics integral over the triangle, the coherent,
+specular part that Sionna's model scales by sqrt(1 - S^2): with S = 0.5 it carries 75 % of the reflected
+power, so leaving it out underestimates the body (mean walk RCS about -8 instead of -3.1 dBsm, see
+`rcs.walk_body_rcs`). Image paths are multiplied by the wall's co-polar slab reflection coefficient at
+each reflection point.
+
+Diffuse phase (``seed``, default 0; None: none): a rough surface's diffuse field has a random phase per
+resolution cell, fixed while the cell moves with the skin. Each facet gets one uniform phase
+(`surface_scattering.diffuse_phases`, seeded by (seed, F)), the same in every frame (Doppler stays
+coherent) and on every path of the facet (direct, via walls, double bounce: the same surface cell).
+The expected coherent power of the diffuse sum is then its power sum, which is area-weighted, so the body's
+diffuse return no longer grows with the mesh resolution (with equal phases a flat patch of N facets gave
+N times its power). The PO term keeps its deterministic phase: it is the coherent part.
 
 A facet absent in a frame (back-facing, occluded, reflection point off the wall, degenerate) has gain 0
 and delay NaN, and the synthesiser fades it. Visibility (Mitsuba shadow rays on the shared scene, see
-`visibility`) and gains are evaluated at `trace_fps` (default 10 Hz; None: every frame) and linearly interpolated in
-between; delays and delay rates are exact at every frame. Gains follow the synthesiser's phase convention
-exp(+j 2 pi f tau), i.e. they are the complex conjugates of Sionna-convention channel coefficients.
+`visibility`) and gains are evaluated at `trace_fps` (default 10 Hz; None: every frame) and linearly
+interpolated in between; delays and delay rates are exact at every frame. Gains follow the synthesiser's
+phase convention exp(+j 2 pi f tau), i.e. they are the complex conjugates of Sionna-convention channel
+coefficients.
 
-With ``image_lod`` (default "2k") the image paths are traced on a coarser mesh of the same skinned body
-(its own BVH; ids f_c + F (1 + 2w) with f_c a coarse facet): diffuse gains are area-weighted, so the image
-power is kept while the image path count drops ~5x.
+With ``image_lod`` (default "2k") all image paths (single and double bounce) are traced on a coarser mesh
+of the same skinned body (its own BVH and its own diffuse phases; ids f_c + F kind with f_c a coarse
+facet): diffuse power is area-weighted and the PO term is the same surface integral, so the image power
+is kept (coherent image power of a 2 s walk within 0.4 dB of the 5k image mesh) while the image path
+count drops ~5x.
 
 Cost drivers (see benchmarks/bench_facets.py): one BVH build per traced frame (batched, ~9 ms CPU per 10k
 triangles), the Python/numpy work around ~10^4 shadow rays per antenna and traced frame (x 2 per wall and
-image facet; the casts themselves are cheap), and the [frames, paths] output arrays, which also set the
-synthesiser's cost; the knobs are `trace_fps`, the LOD, `image_lod`, `walls` and `min_relative_gain_db`.
+image facet; the casts themselves are cheap), the compiled gains (~0.3 us per facet path with PO,
+`facet_kernels`), and the [frames, paths] output arrays, which also set the synthesiser's cost; the knobs
+are `trace_fps`, the LOD, `image_lod`, `walls`, `double_bounce` and `min_relative_gain_db`.
 """
 from __future__ import annotations
 
@@ -42,7 +62,7 @@ import numpy as np
 
 from processing.pathset import PathSet
 from rtchannel.backends.facet_assemble import assemble, link_gains, merge_batches
-from rtchannel.backends.surface_scattering import SurfaceMaterial
+from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases
 from rtchannel.backends.visibility import batch_visibility, caster_for, check_body_clearance
 from rtchannel.body.skinning import face_normals_and_areas
 
@@ -57,12 +77,19 @@ class LinkSpec:
 
 
 # Fast defaults (benchmarks/bench_facets.py; error cost in `rtchannel.analysis.speed_error`): visibility and gains
-# at 10 Hz (gains interpolated, delays exact every frame), wall images on the 2k mesh (image power kept
-# within 0.05 dB per wall on the bench walk, ~5x fewer image paths), paths whose peak is 40 dB below the
-# link's strongest dropped (0.1 % of the power, ~15 % of the paths).
+# at 10 Hz (gains interpolated, delays exact every frame), wall images on the 2k mesh (~5x fewer image
+# paths, power kept), paths whose peak is 50 dB below the link's strongest dropped (bench walk: 0.06 % /
+# 0.02 % of the power, 31 % / 22 % of the paths of radar 1 / 2; the PO glints are ~15 dB above a diffuse
+# facet, so -40 dB would drop 1 % of the power). Double bounce via the floor only: on the 5 s bench walk
+# (two radars, 10k body, room) the chain's CPU time is +15 % with every wall (True) and +34 % with every
+# pair of walls ("pairs") against ~0 for the floor, while those paths carry 0.3-0.5 % (True) and 0.9-1.8 %
+# ("pairs") of the received power there, the floor alone 0.01-0.02 % (vertical polarisation meets the
+# floor near its Brewster angle; the walls behind the radars give most of it). The floor is kept on: it is
+# in every room and under a fallen body, and costs nothing measurable.
 DEFAULT_TRACE_FPS = 10.0
 DEFAULT_IMAGE_LOD = "2k"
-DEFAULT_MIN_RELATIVE_GAIN_DB = -40.0
+DEFAULT_MIN_RELATIVE_GAIN_DB = -50.0
+DEFAULT_DOUBLE_BOUNCE = "floor"
 
 
 def trace_frame_indices(n_frames: int, fps: float, trace_fps: float | None) -> np.ndarray:
@@ -95,9 +122,10 @@ def _unique_sources(links: list[LinkSpec]) -> tuple[np.ndarray, list[tuple[int, 
 
 def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray, velocities: np.ndarray | None,
                links: list[LinkSpec], wavelength: float, material: SurfaceMaterial, trace_idx=None,
-               walls=(), po: bool = False, min_relative_gain_db: float | None = None,
+               walls=(), po: bool = True, min_relative_gain_db: float | None = None,
                progress=None, timing: dict | None = None, batch_frames: int = 16,
-               image_mesh: tuple | None = None) -> dict[str, PathSet]:
+               image_mesh: tuple | None = None, seed: int | None = 0,
+               double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE) -> dict[str, PathSet]:
     """Facet path sets of any deforming triangle mesh (the engine behind `facet_paths`).
 
     Args:
@@ -113,7 +141,10 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         batch_frames: traced frames whose bodies share one BVH build (`visibility.FrameBatchCaster`).
         timing: optional dict; wall time [s] is added under "clearance", "bvh", "rays", "gains", "assemble".
         image_mesh: optional (vertices [K, Vc, 3], faces [Fc, 3], velocities or None) of a coarser mesh of
-            the same body (Fc <= F) on which the wall-image paths are traced instead (ids f_c + F (1 + 2w)).
+            the same body (Fc <= F) on which the wall-image paths are traced instead (ids f_c + F kind).
+        seed: seed of the fixed random diffuse phase per facet (`diffuse_phases`); None: no random phase.
+        double_bounce: double-bounce image paths (see `double_bounce_pairs`): False, True (= "same": both
+            antennas mirrored in the same wall, every wall), "pairs" (any two walls), "floor" or a wall name.
 
     Returns:
         {link name: persistent PathSet}; ids as in the module doc (F = number of faces).
@@ -146,10 +177,12 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         if len(f_c) > len(faces):
             raise ValueError(f"the image mesh has more faces ({len(f_c)}) than the mesh ({len(faces)})")
         meshes.append((np.asarray(v_c, float), np.asarray(f_c, np.int64), vel_c, False, True))
+    double = double_bounce_pairs(double_bounce, walls)
     parts = []
     for verts, fcs, vels, direct_paths, image_paths in meshes:
         found = _trace(scene, verts, fcs, trace_idx, sources, pairs, walls if image_paths else [], material,
-                       wavelength, po, batch_frames, direct_paths, clock, progress)
+                       wavelength, po, batch_frames, direct_paths, clock, progress, diffuse_phases(seed, len(fcs)),
+                       double if image_paths else [])
         parts.append((found, verts, vels, fcs))
     out = {link.name: assemble([(p[0][li],) + p[1:] for p in parts], link.name, sources[pairs[li][0]],
                                sources[pairs[li][1]], walls, times, trace_idx, len(faces), min_relative_gain_db)
@@ -158,8 +191,32 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     return out
 
 
+def double_bounce_pairs(double_bounce: bool | str | None, walls) -> list[tuple[int, int]]:
+    """(tx wall, rx wall) index pairs of the double-bounce paths: False/None/"off" none; True/"same" each
+    wall with itself (tx -> wall -> facet -> same wall -> rx); "pairs" every ordered pair of walls; "floor"
+    the lowest upward-facing plane(s) (normal within 8 deg of +z, within 1 cm of the lowest; none in a
+    scene without one) with itself; any other string: the wall of that name with itself."""
+    n = len(walls)
+    if double_bounce in (False, None, "off"):
+        return []
+    if double_bounce in (True, "same"):
+        return [(w, w) for w in range(n)]
+    if double_bounce == "pairs":
+        return [(a, b) for a in range(n) for b in range(n)]
+    if double_bounce == "floor":
+        up = [w for w, wall in enumerate(walls) if float(np.asarray(wall.normal, float)[2]) > 0.99]
+        low = min((float(walls[w].point[2]) for w in up), default=0.0)
+        return [(w, w) for w in up if float(walls[w].point[2]) < low + 0.01]
+    names = [getattr(w, "name", None) for w in walls]
+    if isinstance(double_bounce, str) and double_bounce in names:
+        w = names.index(double_bounce)
+        return [(w, w)]
+    raise ValueError(f"double_bounce must be true, false, 'same', 'pairs', 'floor' or a wall name {names}, "
+                     f"got {double_bounce!r}")
+
+
 def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, wavelength, po, batch_frames,
-           direct_paths, clock, progress) -> list[dict]:
+           direct_paths, clock, progress, phases, double) -> list[dict]:
     """Visibility and gains at the traced frames of one mesh, batch by batch (one BVH build each)."""
     caster = caster_for(scene, faces, vertices, sources, min(batch_frames, len(trace_idx)))
     batches = []
@@ -169,11 +226,14 @@ def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, w
         clock("bvh")
         v = vertices[frames]
         normals, areas, degenerate = face_normals_and_areas(v, faces)
-        cent = v[:, faces].mean(axis=2)
-        vis = batch_visibility(caster, cent, normals, ~degenerate, sources, walls, pairs)
+        corners = v[:, faces]  # [B, F, 3, 3]
+        cent = corners.mean(axis=2)
+        vis = batch_visibility(caster, cent, normals, ~degenerate, sources, walls, pairs,
+                               {w for pair in double for w in pair})
         clock("rays")
         batches.append(link_gains(vis, pairs, sources, walls, start, cent, normals, areas,
-                                  lambda b, f: v[b[:, None], faces[f]], material, wavelength, po, direct_paths))
+                                  lambda b, f: corners[b, f], material, wavelength, po, phases,
+                                  direct_paths, double=double))
         clock("gains")
         if progress is not None:
             progress(start + len(frames))
@@ -196,10 +256,11 @@ class _Clock:
 
 
 def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float | None = DEFAULT_TRACE_FPS,
-                walls: bool = True, po: bool = False, skin=None,
+                walls: bool = True, po: bool = True, skin=None,
                 min_relative_gain_db: float | None = DEFAULT_MIN_RELATIVE_GAIN_DB,
                 progress=None, velocity_method: str = "spline", timing: dict | None = None,
-                batch_frames: int = 16, image_lod: str | None = DEFAULT_IMAGE_LOD) -> dict[str, PathSet]:
+                batch_frames: int = 16, image_lod: str | None = DEFAULT_IMAGE_LOD, seed: int | None = 0,
+                double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE) -> dict[str, PathSet]:
     """Persistent facet path sets (one per link) of the skinned avatar moving with `motion`.
 
     The defaults are the fast setting (see `DEFAULT_TRACE_FPS`); ``trace_fps=None, image_lod=None,
@@ -213,7 +274,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         trace_fps: rate [Hz] of visibility/gain evaluation (None: every motion frame); a speed knob.
             Coarser than the motion only when below its frame rate.
         walls: include first-order body-wall image paths.
-        po: add the physical-optics term to the diffuse gain.
+        po: add the physical-optics term to the diffuse gain (default on; off leaves only the diffuse part).
         skin: `rtchannel.scene.rt_scene.SkinMaterial` (default dry skin at the carrier).
         min_relative_gain_db: drop paths weaker than this (dB, negative) relative to the strongest.
         progress: callable receiving the number of traced frames done.
@@ -224,10 +285,14 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
             and "assemble".
         image_lod: LOD on which the wall-image paths are traced (None: `lod`); a coarser one (e.g. "2k")
             gives ~5x fewer image paths with the same power (diffuse gains are area-weighted), while the
-            direct paths keep `lod`. Image ids are then f_c + F (1 + image index), f_c a coarse facet.
+            direct paths keep `lod`. Image ids are then f_c + F kind, f_c a coarse facet.
+        seed: seed of the fixed random phase of each facet's diffuse field (None: no random phase).
+        double_bounce: double-bounce wall paths (tx and rx both mirrored): "floor" (default: the lowest
+            upward-facing plane with itself), True (each wall with itself), "pairs" (every pair of walls),
+            False, or one wall's name; see `double_bounce_pairs`.
 
     Returns:
-        {link name: PathSet} with ids f (direct) and f + F (1 + image index) (wall images).
+        {link name: PathSet} with ids f + F kind, kind as in the module doc (0 direct, 1.. wall images).
 
     Raises:
         rtchannel.scene.rt_scene.RadarPlacementError: an antenna closer than 1 cm to the geometry.
@@ -264,10 +329,10 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     return mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material,
                       trace_frame_indices(motion.n_frames, motion.fps, trace_fps),
                       rt.walls if walls else (), po, min_relative_gain_db, progress, timing, batch_frames,
-                      image_mesh)
+                      image_mesh, seed, double_bounce)
 
 
-def rcs_backend(skin=None, po: bool = True):
+def rcs_backend(skin=None, po: bool = True, seed: int | None = 0):
     """A `rtchannel.backends.rcs.BackendFn` for static calibration targets in free space: facets of the
     mesh with `skin` (an `rtchannel.scene.rt_scene.SkinMaterial`, e.g. `rcs.PEC`; default dry skin) as
     material, diffuse plus (if `po`) physical optics. Gains are in the synthesiser's convention, so
@@ -280,6 +345,6 @@ def rcs_backend(skin=None, po: bool = True):
         links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos) for lk in radar.links]
         v = np.stack([vertices, vertices])
         return mesh_paths(scene, np.array([0.0, 0.1]), v, faces, None, links, wf.wavelength,
-                          SurfaceMaterial.from_skin(scene.skin, wf.carrier_hz), po=po)
+                          SurfaceMaterial.from_skin(scene.skin, wf.carrier_hz), po=po, seed=seed)
 
     return run

@@ -16,6 +16,13 @@ Closed forms used by the tests (optical region, target size >> lambda):
   4 S^2 |G|^2 A;
 - a specular mirror reflection in an image-method tracer (Sionna RT) is the image of the radar in an
   infinite plane: |a| = lambda / (4 pi 2R), i.e. sigma = pi R^2 whatever the plate's size.
+
+Body RCS over a walk (`walk_body_rcs`, the calibration of the `points` backend's whole-body RCS against
+the `facets` default): monostatic radars at a fixed distance around a short procedural walk in free space;
+per frame, every path is scaled by its own range, sigma_p = (4 pi)^3 R_p^4 |a_p|^2 / lambda^2 with R_p =
+c0 tau_p / 2, and the paths are summed coherently with the synthesiser's phase exp(+j 2 pi f tau) (the RCS
+the radar sees in that frame) and in power (incoherent); both are averaged in power over the frames.
+Run ``python -m rtchannel.backends.rcs`` for the table behind `rtchannel.backends.points.BODY_RCS_M2`.
 """
 from __future__ import annotations
 
@@ -76,6 +83,62 @@ def monostatic_rcs(backend: BackendFn, vertices: np.ndarray, faces: np.ndarray, 
             "coherent": float(k * distance ** 4 * np.abs(coherent) ** 2), "n_paths": int(present.sum())}
 
 
+def frame_rcs(ps: PathSet, frequency_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """(coherent, incoherent) RCS [m^2] per frame [K] of a monostatic, single-bounce path set (free space).
+
+    Each path is scaled to its own range R = c0 tau / 2 before the sum (see the module doc); absent
+    paths (gain 0) are skipped."""
+    lam = C0 / frequency_hz
+    on = ps.gains != 0
+    tau = np.where(on, ps.delays, 0.0)
+    root_sigma = ps.gains * (C0 * tau / 2) ** 2 * (4 * np.pi) ** 1.5 / lam  # sqrt(sigma_p) up to phase
+    s = np.where(on, root_sigma * np.exp(2j * np.pi * frequency_hz * tau), 0)
+    return np.abs(s.sum(axis=1)) ** 2, np.sum(np.abs(s) ** 2, axis=1)
+
+
+WALK_AZIMUTHS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0)
+
+
+def walk_body_rcs(backend: str = "facets", duration: float = 3.0, distance: float = 3.0,
+                  azimuths_deg=WALK_AZIMUTHS_DEG, antenna_height: float = 1.1, walk_seed: int = 0,
+                  **options) -> dict:
+    """Mean monostatic body RCS [m^2] of a procedural walk seen from several directions (free space).
+
+    The body walks `duration` s at 1 m/s along +x, its hips passing the origin at mid-walk; one monostatic
+    radar sits `distance` m from the origin at each azimuth (0 deg: ahead of the walker, 90 deg: on its
+    left side), `antenna_height` m up. `backend` is "facets" (`facet_paths` in free space without walls,
+    other `options` passed on) or "points" (`point_paths`, options passed on).
+
+    Returns:
+        {"coherent": mean over radars and frames of the per-frame coherent RCS, "incoherent": the same
+        for the power sum, "per_azimuth": {azimuth: (coherent, incoherent)}}, all in m^2.
+    """
+    from rtchannel.motion.procedural import generate
+
+    motion = generate("walk", duration=duration, speed=1.0, start=(-duration / 2, 0.0), pad_before=0.0,
+                      pad_after=0.0, seed=walk_seed)
+    az = np.deg2rad(np.asarray(azimuths_deg, float))
+    links = [Link(name=f"az{a:g}", tx=(distance * np.cos(r), distance * np.sin(r), antenna_height))
+             for a, r in zip(azimuths_deg, az)]
+    radar = RadarConfig(links=links)
+    if backend == "facets":
+        from rtchannel.backends.facets import facet_paths
+
+        paths = facet_paths(motion, radar, scene="free_space", walls=False, **options)
+    elif backend == "points":
+        from rtchannel.backends.points import point_paths
+
+        paths = point_paths(motion, radar, **options)
+    else:
+        raise ValueError(f"walk_body_rcs supports the facets and points backends, got {backend!r}")
+    per = {}
+    for a, link in zip(azimuths_deg, links):
+        coh, inc = frame_rcs(paths[link.name], radar.waveform.carrier_hz)
+        per[a] = (float(coh.mean()), float(inc.mean()))
+    return {"coherent": float(np.mean([v[0] for v in per.values()])),
+            "incoherent": float(np.mean([v[1] for v in per.values()])), "per_azimuth": per}
+
+
 def sionna_backend(material: SkinMaterial = PEC, **options) -> BackendFn:
     """A `BackendFn` tracing one static frame with the `sionna` backend in free space.
 
@@ -102,4 +165,27 @@ def plate_po_rcs(area: float, frequency_hz: float = 24.125e9) -> float:
 
 
 __all__ = ["monostatic_rcs", "sionna_backend", "sphere_mesh", "plate_mesh", "lambertian_sphere_rcs",
-           "plate_po_rcs", "PEC", "BackendFn"]
+           "plate_po_rcs", "PEC", "BackendFn", "frame_rcs", "walk_body_rcs"]
+
+
+def _db(x: float) -> str:
+    return f"{10 * np.log10(x):6.2f}"
+
+
+if __name__ == "__main__":  # the body-RCS table behind points.BODY_RCS_M2 (see the module doc)
+    import argparse
+
+    ap = argparse.ArgumentParser(description="mean monostatic body RCS over a procedural walk (dBsm)")
+    ap.add_argument("--duration", type=float, default=3.0)
+    ap.add_argument("--lods", nargs="+", default=["2k", "5k", "10k"])
+    ap.add_argument("--po", choices=["on", "off", "both"], default="on")
+    args = ap.parse_args()
+    rows = [("points", {})]
+    for po in {"on": [True], "off": [False], "both": [True, False]}[args.po]:
+        rows += [("facets", {"lod": lod, "po": po}) for lod in args.lods]
+    print(f"walk {args.duration:g} s at 1 m/s, radars 3 m away at azimuths {WALK_AZIMUTHS_DEG} deg, 1.1 m up")
+    print("backend options | coherent | incoherent | per azimuth coherent (dBsm)")
+    for backend, opts in rows:
+        r = walk_body_rcs(backend, args.duration, **opts)
+        per = " ".join(_db(v[0]) for v in r["per_azimuth"].values())
+        print(f"{backend} {opts} | {_db(r['coherent'])} | {_db(r['incoherent'])} | {per}", flush=True)

@@ -1,5 +1,7 @@
 """Surface scattering maths of the `facets` backend: Fresnel/slab reflection, Sionna RT's diffuse model,
-physical optics (PO) over flat triangles, and the radar-equation amplitude. Plain numpy, SI units.
+physical optics (PO) over flat triangles, and the radar-equation amplitude. numpy reference maths, SI
+units; the Lambertian diffuse + PO gains and the wall factors run through their compiled equivalents in
+`facet_kernels`.
 
 Common scale (Sionna RT's path-coefficient convention, isotropic unit-gain antennas): a path with
 radar cross-section sigma at distances r_tx, r_rx has |a|^2 = P_r / P_t, i.e.
@@ -16,6 +18,10 @@ isotropic receiver this is a radar cross-section per element
 
 whose amplitude is real and positive (Sionna's diffuse Jones matrix has no phase besides propagation).
 Summed in power over a body this gives the closed forms `diffuse_sphere_rcs` and `diffuse_plate_rcs`.
+The diffuse model defines a power, not a phase: a rough surface's diffuse field has a random phase per
+resolution cell, so `facet_gains` multiplies each element's diffuse amplitude by a fixed random phase
+factor (`diffuse_phases`); the expected coherent power of a sum of elements is then its power sum, the
+quantity the model defines, on any mesh of the surface.
 
 Physical optics (Knott's scalar form, bistatic with the bisector direction): the facet's complex
 sqrt(RCS) is
@@ -42,11 +48,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import comb
 
-import numba
 import numpy as np
 from scipy.constants import epsilon_0
 
-FOUR_PI_1_5 = (4 * np.pi) ** 1.5
+from rtchannel.backends import facet_kernels
+
+FOUR_PI_1_5 = facet_kernels.FOUR_PI_1_5
 
 
 @dataclass(frozen=True)
@@ -236,39 +243,13 @@ def po_sqrt_rcs(corners, u_tx, u_rx, normal, rho, wavelength: float) -> np.ndarr
     return 1j * np.conj(rho) * (np.sqrt(4 * np.pi) / wavelength) * cos_b * integral
 
 
-def facet_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, corners, p_a, p_b, po: bool):
-    """Complex path gains (synthesiser convention) of facets on p_a -> facet -> p_b.
-
-    c: centroids [N, 3] (m); n: unit normals [N, 3]; area: [N] (m^2); corners: [N, 3, 3] (m, used with po);
-    p_a, p_b: points [3] or [N, 3] (m). Diffuse term (Sionna's model), plus sqrt(1 - S^2) x PO if `po`."""
-    if mat.pattern == "lambertian" and not po:
-        return lambertian_gains(mat, wavelength, c, n, area, np.broadcast_to(p_a, c.shape),
-                                np.broadcast_to(p_b, c.shape)).astype(complex)
-    da, db = c - p_a, c - p_b
-    ra, rb = np.linalg.norm(da, axis=1), np.linalg.norm(db, axis=1)
-    k_i = da / ra[:, None]  # incident propagation direction
-    u_b = -db / rb[:, None]  # facet -> receiver
-    cos_i = np.clip(-np.einsum("ij,ij->i", n, k_i), 0.0, 1.0)
-    c2 = te_fraction(k_i, n)
-    r_te, r_tm = slab_reflection(cos_i, mat.eta, mat.thickness, wavelength)
-    root_sigma = diffuse_sqrt_rcs(mat, k_i, u_b, n, area, gamma_magnitude(r_te, r_tm, c2)).astype(complex)
-    if po:
-        half = -k_i + u_b
-        cos_b = np.einsum("ij,ij->i", n, half) / np.maximum(np.linalg.norm(half, axis=1), 1e-12)
-        rb_te, rb_tm = slab_reflection(cos_b, mat.eta, mat.thickness, wavelength)
-        rho = -co_polar_reflection(rb_te, rb_tm, c2)
-        r_spec = np.sqrt(1.0 - mat.scattering_coefficient ** 2)
-        root_sigma = root_sigma + r_spec * po_sqrt_rcs(corners, -k_i, u_b, n, rho, wavelength)
-    return wavelength * root_sigma / (FOUR_PI_1_5 * ra * rb)
-
-
 def wall_factor(wall, cos_w, k_in, wavelength):
     """Conjugated co-polar slab reflection coefficient of `wall` at incidence cosines cos_w [N] for
-    incident directions k_in [N, 3] (synthesiser phase convention)."""
+    incident directions k_in [N, 3] (synthesiser phase convention): conj(c^2 r_te - (1 - c^2) r_tm) with
+    `slab_reflection` and `te_fraction` (compiled)."""
     eta = None if wall.relative_permittivity is None else complex(wall.relative_permittivity)
-    r_te, r_tm = slab_reflection(cos_w, eta, getattr(wall, "thickness", None) or None, wavelength)
-    c2 = te_fraction(k_in, np.broadcast_to(np.asarray(wall.normal, float), k_in.shape))
-    return np.conj(co_polar_reflection(r_te, r_tm, c2))  # synthesiser (conjugate) phase convention
+    return facet_kernels.wall_factors(cos_w, k_in, np.asarray(wall.normal, float), eta,
+                                      getattr(wall, "thickness", None) or 0.0, wavelength)
 
 
 def diffuse_sphere_rcs(radius: float, scattering_coefficient: float, gamma: float = 1.0) -> float:
@@ -293,70 +274,60 @@ def optical_sphere_rcs(radius: float) -> float:
     return np.pi * radius ** 2
 
 
-@numba.njit(cache=True, inline="always")
-def _lambertian_one(e, c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out):
-    """Fused `diffuse_sqrt_rcs` (Lambertian) + radar-equation amplitude of element e on p_a -> c -> p_b."""
-    k_d = 2 * np.pi * thickness / wavelength
-    ra2 = 0.0
-    rb2 = 0.0
-    for i in range(3):
-        ra2 += (c[e, i] - p_a[e, i]) ** 2
-        rb2 += (c[e, i] - p_b[e, i]) ** 2
-    ra, rb = np.sqrt(ra2), np.sqrt(rb2)
-    kx, ky, kz = (c[e, 0] - p_a[e, 0]) / ra, (c[e, 1] - p_a[e, 1]) / ra, (c[e, 2] - p_a[e, 2]) / ra
-    nx, ny, nz = n[e, 0], n[e, 1], n[e, 2]
-    cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
-    cos_s = min(max(-(nx * (c[e, 0] - p_b[e, 0]) + ny * (c[e, 1] - p_b[e, 1]) + nz * (c[e, 2] - p_b[e, 2])) / rb,
-                    0.0), 1.0)
-    if pec:
-        gamma = 1.0
+def diffuse_phases(seed: int | None, n_facets: int) -> np.ndarray | None:
+    """Fixed random phase factors exp(j phi_f) [n_facets] of the diffuse field of each facet (None: no
+    random phase, every diffuse gain real and positive).
+
+    A rough surface's diffuse field is the sum of many small contributions within a resolution cell, so
+    its phase is random and uniform per cell; it is fixed for the cell (the roughness moves with the
+    skin), so a facet keeps its phase in every frame and on every path (direct, via a wall, double
+    bounce), and Doppler stays coherent. With independent uniform phases the expected coherent power of a
+    facet sum equals its incoherent (power) sum, which is area-weighted and therefore independent of the
+    mesh resolution. The stream is seeded by (seed, n_facets): meshes of different resolution get
+    independent phases, the same mesh always the same ones."""
+    if seed is None:
+        return None
+    return np.exp(1j * np.random.default_rng([int(seed), int(n_facets)]).uniform(0.0, 2 * np.pi, int(n_facets)))
+
+
+def facet_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, corners, p_a, p_b, po: bool, phase=None):
+    """Complex path gains (synthesiser convention) of facets on p_a -> facet -> p_b.
+
+    c: centroids [N, 3] (m); n: unit normals [N, 3]; area: [N] (m^2); corners: [N, 3, 3] (m, used with po);
+    p_a, p_b: points [3] or [N, 3] (m); phase: unit factors [N] multiplying the diffuse part (see
+    `diffuse_phases`), or None. Diffuse term (Sionna's model), plus sqrt(1 - S^2) x PO if `po`."""
+    p_a, p_b = np.broadcast_to(p_a, c.shape), np.broadcast_to(p_b, c.shape)
+    if mat.pattern == "lambertian":
+        diffuse, specular = _compiled_gains(mat, wavelength, c, n, area, corners, p_a, p_b, po)
     else:
-        # TE fraction of a theta-hat (vertical) incident field: theta_hat ~ (k x z) x k, e_perp = k x n.
-        tx, ty, tz = -kx * kz, -ky * kz, kx * kx + ky * ky
-        px, py, pz = ky * nz - kz * ny, kz * nx - kx * nz, kx * ny - ky * nx
-        tn = tx * tx + ty * ty + tz * tz
-        pn = px * px + py * py + pz * pz
-        c2 = 0.5
-        if tn > 1e-18 and pn > 1e-18:
-            c2 = min((tx * px + ty * py + tz * pz) ** 2 / (tn * pn), 1.0)
-        b = np.sqrt(eta - (1.0 - cos_i * cos_i))
-        r_te = (cos_i - b) / (cos_i + b)
-        r_tm = (eta * cos_i - b) / (eta * cos_i + b)
-        if thickness > 0 and 2 * k_d * b.imag > -40.0:  # else the slab's back face is invisible
-            e2 = np.exp(-2j * k_d * b)
-            r_te = r_te * (1 - e2) / (1 - r_te * r_te * e2)
-            r_tm = r_tm * (1 - e2) / (1 - r_tm * r_tm * e2)
-        gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
-    root = s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[e], 0.0))
-    out[e] = wavelength * root / (FOUR_PI_1_5 * ra * rb)
-
-
-@numba.njit(parallel=True, cache=True)
-def _lambertian_parallel(c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out):
-    for e in numba.prange(c.shape[0]):
-        _lambertian_one(e, c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out)
-
-
-@numba.njit(cache=True)
-def _lambertian_serial(c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out):
-    for e in range(c.shape[0]):
-        _lambertian_one(e, c, n, area, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, out)
-
-
-# Below this many elements a parallel launch costs more than it saves (numba's thread start-up and
-# spinning measured ~9 ms per call on a loaded 2-core machine, against ~0.1 us per element).
-_PARALLEL_MIN = 1_000_000
+        da, db = c - p_a, c - p_b
+        ra, rb = np.linalg.norm(da, axis=1), np.linalg.norm(db, axis=1)
+        k_i = da / ra[:, None]  # incident propagation direction
+        u_b = -db / rb[:, None]  # facet -> receiver
+        cos_i = np.clip(-np.einsum("ij,ij->i", n, k_i), 0.0, 1.0)
+        c2 = te_fraction(k_i, n)
+        r_te, r_tm = slab_reflection(cos_i, mat.eta, mat.thickness, wavelength)
+        scale = wavelength / (FOUR_PI_1_5 * ra * rb)
+        diffuse = scale * diffuse_sqrt_rcs(mat, k_i, u_b, n, area, gamma_magnitude(r_te, r_tm, c2))
+        if po:
+            half = -k_i + u_b
+            cos_b = np.einsum("ij,ij->i", n, half) / np.maximum(np.linalg.norm(half, axis=1), 1e-12)
+            rb_te, rb_tm = slab_reflection(cos_b, mat.eta, mat.thickness, wavelength)
+            rho = -co_polar_reflection(rb_te, rb_tm, c2)
+            specular = (scale * np.sqrt(1.0 - mat.scattering_coefficient ** 2)
+                        * po_sqrt_rcs(corners, -k_i, u_b, n, rho, wavelength))
+    g = diffuse * phase if phase is not None else diffuse.astype(complex)
+    return g + specular if po else g
 
 
 def lambertian_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, p_a, p_b) -> np.ndarray:
     """Real path gains [E] of surface elements (centroids c [E, 3], normals, areas [E]) on p_a -> c -> p_b
     (points [E, 3]) under the Lambertian diffuse model: the fused, compiled equivalent of
     `rcs_amplitude` applied to `diffuse_sqrt_rcs`."""
-    out = np.empty(len(c))
-    pec = mat.eta is None
-    arr = [np.ascontiguousarray(x, float) for x in (c, n, area, p_a, p_b)]
-    kernel = _lambertian_parallel if len(c) >= _PARALLEL_MIN else _lambertian_serial
-    kernel(*arr,
-                       complex(0.0 if pec else mat.eta), pec, float(mat.thickness or 0.0), float(wavelength),
-                       float(mat.scattering_coefficient), float(mat.xpd_coefficient), out)
-    return out
+    return _compiled_gains(mat, wavelength, c, n, area, None, p_a, p_b, False)[0]
+
+
+def _compiled_gains(mat, wavelength, c, n, area, corners, p_a, p_b, po):
+    """(diffuse [E] real, PO [E] complex or None) path gains of the Lambertian model (compiled kernels)."""
+    return facet_kernels.lambertian_po_gains(c, n, area, corners, p_a, p_b, mat.eta, mat.thickness or 0.0, wavelength,
+                                             mat.scattering_coefficient, mat.xpd_coefficient, po)

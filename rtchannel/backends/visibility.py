@@ -8,9 +8,11 @@ occluders (other body triangles, walls, furniture) can block it:
   (`wall_images.reflection_points`), is visible when both q -> centroid and antenna -> q are free.
 
 Image legs are only traced for facets the caller still needs (those visible directly from the other
-end of some link), which halves the ray count. The rays of every traced frame of a BVH batch (see
-`FrameBatchCaster`) go to Mitsuba in two calls: all direct rays, then all image legs; casting is cheap
-(~3e7 rays/s), so the Python/numpy work around it is kept vectorised over frames and facets.
+end of some link), which halves the ray count; through walls with double-bounce paths (both
+antennas mirrored) every facet facing the image is traced, as such a path needs no direct line of
+sight. The rays of every traced frame of a BVH batch (see `FrameBatchCaster`) go to Mitsuba in two
+calls: all direct rays, then all image legs; casting is cheap (~3e7 rays/s), so the Python/numpy work
+around it is kept vectorised over frames and facets.
 
 The scene is an `rtchannel.scene.rt_scene.RTScene` (or anything with ``mi_scene`` or a ``cast`` method).
 """
@@ -74,12 +76,13 @@ class BatchVisibility:
     images: dict
 
 
-def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs) -> BatchVisibility:
+def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, every_facet=()) -> BatchVisibility:
     """Visibility of facets (centroids, normals [B, F, 3], usable [B, F]) of the frames loaded in
     `caster`'s cells 0..B-1 from `sources` [S, 3] (m), directly and through `walls`.
 
     pairs: (tx source, rx source) of each link; image legs are traced only for facets visible directly
-    from the other end of some link."""
+    from the other end of some link, except through the walls indexed in `every_facet` (double-bounce
+    paths need a facet seen through two images, whether or not an antenna sees it directly)."""
     n_b, n_f = usable.shape
     direct = np.zeros((len(sources), n_b, n_f), bool)
     parts = []
@@ -108,7 +111,8 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs) 
                 continue
             image = mirror(pos, wall)
             h_c = (centroids - wall.point) @ nw
-            b, f = np.nonzero(needed[s] & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
+            need = usable if w in every_facet else needed[s]
+            b, f = np.nonzero(need & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
             c = centroids[b, f]
             frac = h_c[b, f] / (h_c[b, f] + h_src)
             q = c + frac[:, None] * (image - c)

@@ -8,6 +8,9 @@ the wall's plane, to the facet, plus facet -> rx. It exists (image validity) whe
   polygon (a convex polygon, as `rtchannel.scene.rt_scene.Wall` provides),
 - and both legs (tx -> q, q -> facet) are unoccluded (checked by ray casts in `visibility`).
 
+A double bounce tx -> wall -> facet -> wall -> rx is the straight path tx' -> facet -> rx' with both
+antennas mirrored; it exists when both single-image conditions hold (one reflection point per antenna).
+
 Walls are duck-typed: anything with ``point`` [3], unit ``normal`` [3] (into the room), ``polygon`` [K, 3]
 (convex, ordered), ``relative_permittivity`` (complex) and optionally ``thickness`` [m].
 """
