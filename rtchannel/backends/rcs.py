@@ -30,6 +30,7 @@ from typing import Callable
 
 import numpy as np
 
+from processing.antenna import Isotropic
 from processing.pathset import PathSet
 from processing.waveform import C0
 from rtchannel.radar import Link, RadarConfig
@@ -120,7 +121,7 @@ def walk_body_rcs(backend: str = "facets", duration: float = 3.0, distance: floa
     az = np.deg2rad(np.asarray(azimuths_deg, float))
     links = [Link(name=f"az{a:g}", tx=(distance * np.cos(r), distance * np.sin(r), antenna_height))
              for a, r in zip(azimuths_deg, az)]
-    radar = RadarConfig(links=links)
+    radar = RadarConfig(links=links, antenna=Isotropic(), receiver=None)  # RCS: unit-gain antennas
     if backend == "facets":
         from rtchannel.backends.facets import facet_paths
 
