@@ -43,13 +43,17 @@ RD_MIN_INTERVAL_S = 0.1
 class DSPConfig(BaseModel):
     """Signal-processing settings (SI units: m, s, Hz, m/s). Window names are scipy.signal window names."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # Bounds (reasons): a slow-time window of at most 65536 chirps (33 s at the seed's PRI; longer windows
+    # average a body's whole motion into one spectrum) and an FFT of at most 2^20 points keep one window's
+    # arrays (range bins x FFT points) within a few hundred MB; non-finite values are refused everywhere.
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     # slow-time STFT
-    window_chirps: int = Field(64, ge=4, description="slow-time window W of the micro-Doppler STFT [chirps]")
-    hop_chirps: int = Field(32, ge=1, description="hop between successive windows [chirps] (<= window)")
-    fft_points: int | None = Field(None, ge=4, description="slow-time FFT length (zero padding, >= window); "
-                                   "default: window_chirps")
+    window_chirps: int = Field(64, ge=4, le=65536, description="slow-time window W of the micro-Doppler STFT "
+                               "[chirps]")
+    hop_chirps: int = Field(32, ge=1, le=65536, description="hop between successive windows [chirps] (<= window)")
+    fft_points: int | None = Field(None, ge=4, le=2 ** 20, description="slow-time FFT length (zero padding, "
+                                   ">= window); default: window_chirps")
     doppler_window: str = Field("boxcar", description="slow-time taper (scipy name); the seed's is boxcar")
     doppler_window_symmetric: bool = Field(False, description="symmetric taper (MATLAB's hamming(n)) "
                                            "instead of scipy's periodic (DFT-even) one")
@@ -57,22 +61,22 @@ class DSPConfig(BaseModel):
     range_window: str = Field("boxcar", description="fast-time taper before the range FFT (scipy name)")
     range_bins: Literal["all", "positive_half"] = Field(
         "all", description="all: every range bin up to the largest range; positive_half: bins below N/2 only")
-    min_range_m: float = Field(0.0, ge=0, description="lowest range summed for p(v,t) [m] (from the bin "
+    min_range_m: float = Field(0.0, ge=0, le=1e4, description="lowest range summed for p(v,t) [m] (from the bin "
                                "containing it)")
-    max_range_m: float | None = Field(None, gt=0, description="highest range used [m]; default: waveform's")
+    max_range_m: float | None = Field(None, gt=0, le=1e6, description="highest range used [m]; default: waveform's")
     range_sum: Literal["coherent", "incoherent", "magnitude"] = Field(
         "coherent", description="how the range bins of the Doppler band make p(v,t): coherent = seed eq. 6 "
         "(sum bins, then STFT); incoherent = sum of per-bin |STFT|^2; magnitude = (sum of per-bin |STFT|)^2 "
         "(the Glasgow script's sum of magnitudes)")
     coherent_offset_samples: int | None = Field(
-        None, ge=0, description="coherent sum: skip this many fast-time samples after the chirp reset; "
+        None, ge=0, le=16384, description="coherent sum: skip this many fast-time samples after the chirp reset; "
         "default N // 16 (8 of 128), see COHERENT_OFFSET_NOTE")
     # slow-time clutter removal (processing.mti)
     static_removal: Literal["moving_average", "butterworth", "mean", "none"] = Field(
         "moving_average", description="slow-time clutter filter per range bin (see processing.mti)")
-    mti_cutoff_mps: float = Field(DEFAULT_MTI_CUTOFF_MPS, gt=0, description="MTI -3 dB cut-off as a radial "
+    mti_cutoff_mps: float = Field(DEFAULT_MTI_CUTOFF_MPS, gt=0, le=100, description="MTI -3 dB cut-off as a radial "
                                   "velocity [m/s] (f_c = 2 v / lambda of the waveform's carrier)")
-    mti_cutoff_hz: float | None = Field(None, gt=0, description="MTI cut-off in Hz; overrides mti_cutoff_mps")
+    mti_cutoff_hz: float | None = Field(None, gt=0, le=1e6, description="MTI cut-off in Hz; overrides mti_cutoff_mps")
     mti_order: int = Field(4, ge=1, le=10, description="Butterworth order")
     mti_zero_phase: bool = Field(False, description="Butterworth forward-backward (sosfiltfilt) instead of "
                                  "causal (sosfilt)")
@@ -80,7 +84,7 @@ class DSPConfig(BaseModel):
         "steady", description="causal Butterworth start: steady state of the first chirp, or at rest (MATLAB "
         "filter; static returns ring for ~1/f_c)")
     # outputs
-    velocity_crop_mps: float | None = Field(None, gt=0, description="keep |v| <= this in p(v,t) and the "
+    velocity_crop_mps: float | None = Field(None, gt=0, le=1e4, description="keep |v| <= this in p(v,t) and the "
                                             "range-Doppler map [m/s]; default: the whole Doppler period")
     empty_floor: float = Field(1e-12, ge=0, description="time bins below this fraction of the recording's "
                                "peak power before clutter removal are empty")
@@ -91,7 +95,7 @@ class DSPConfig(BaseModel):
         0.2, ge=0, le=1, description="circular resultant length below which 'unwrapped' falls back to 'seed'")
     range_doppler: bool = Field(True, description="compute the range-Doppler map")
     range_doppler_stride: int | None = Field(
-        None, ge=1, description="keep the range-Doppler map of every k-th window; default: the smallest k "
+        None, ge=1, le=10 ** 6, description="keep the range-Doppler map of every k-th window; default: the smallest k "
         "whose maps neither overlap nor come closer than RD_MIN_INTERVAL_S")
 
     @field_validator("doppler_window", "range_window")
@@ -169,3 +173,40 @@ class DSPConfig(BaseModel):
 
 
 GLASGOW_DSP = DSPConfig.glasgow()
+
+
+# A simulation's arrays (per link: IQ if kept, range profiles, spectrogram, range-Doppler maps) beyond
+# this are refused before any work: 8 GiB is a third of the reference machine's memory.
+MAX_SIGNATURE_BYTES = 8 * 2 ** 30
+
+
+def recording_bytes(n_chirps: int, wf, cfg: DSPConfig, keep_iq: bool = False) -> int:
+    """Estimated peak memory [bytes] of one link's IQ (if kept) and DSP arrays for `n_chirps` chirps."""
+    n = wf.samples_per_chirp
+    bins = min(n, int(((wf.max_range_m if cfg.max_range_m is None else cfg.max_range_m) / wf.range_resolution)) + 2)
+    windows = max(0, (n_chirps - cfg.window_chirps) // cfg.hop_chirps + 1)
+    profiles = n_chirps * bins * 8 * 3  # complex64 profiles, MTI output and one temporary
+    spectra = windows * cfg.nfft * 8 * 4  # spectrogram, p(v,t), power and a temporary (float64)
+    rd = (windows // max(1, cfg.rd_stride(wf.pri_s))) * bins * cfg.nfft * 4 if cfg.range_doppler else 0
+    return profiles + spectra + rd + (n_chirps * n * 8 if keep_iq else 0)
+
+
+def check_recording(duration_s: float, wf, cfg: DSPConfig, n_links: int = 1, keep_iq: bool = False) -> int:
+    """Refuse, before any simulation, a recording of `duration_s` seconds that is shorter than one DSP
+    window or whose arrays would exceed `MAX_SIGNATURE_BYTES`; returns the number of chirps.
+
+    Raises `processing.errors.InputError` with one line naming the setting at fault."""
+    from processing.errors import InputError
+
+    n_chirps = int(duration_s / wf.pri_s + 1e-9) + 1
+    if n_chirps < cfg.window_chirps:
+        raise InputError(f"dsp.window_chirps = {cfg.window_chirps} chirps ({cfg.window_chirps * wf.pri_s:g} s) is "
+                         f"longer than the recording ({duration_s:.3g} s = {n_chirps} chirps of {wf.pri_s:g} s): "
+                         "no complete DSP window; shorten the window or lengthen the motion")
+    need = n_links * recording_bytes(n_chirps, wf, cfg, keep_iq)
+    if need > MAX_SIGNATURE_BYTES:
+        raise InputError(f"{n_links} link(s) x {n_chirps} chirps (waveform.pri_s = {wf.pri_s:g} s over "
+                         f"{duration_s:.3g} s) would need ~{need / 2 ** 30:.1f} GiB of signal arrays "
+                         f"(limit {MAX_SIGNATURE_BYTES / 2 ** 30:g} GiB); use a longer PRI, a shorter motion, "
+                         "fewer links or no --keep-iq")
+    return n_chirps

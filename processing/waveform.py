@@ -20,18 +20,25 @@ class Waveform(BaseModel):
     (bistatic: half the total path) range the user needs; the ADC rate must resolve its beat frequency.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # Bounds (reasons): the carrier 1 MHz - 1 THz spans every radar band from HF to sub-mm; the bandwidth
+    # at most the carrier (a sweep cannot pass through 0 Hz) and 100 GHz; the PRI 1 us - 1 s (faster chirps
+    # do not exist in FMCW hardware, slower ones cannot see a moving body; the PRI also sets the chirp
+    # count, i.e. the memory, of a simulation); 1 mm - 10 km of range covers rooms to outdoor sites.
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    carrier_hz: float = Field(24.125e9, gt=0, description="carrier (centre) frequency f0 [Hz]")
-    bandwidth_hz: float = Field(250e6, gt=0, description="swept bandwidth B [Hz]")
-    pri_s: float = Field(0.5e-3, gt=0, description="pulse (chirp) repetition interval [s]")
-    chirp_duration_s: float | None = Field(None, gt=0, description="chirp duration [s]; default = PRI")
+    carrier_hz: float = Field(24.125e9, ge=1e6, le=1e12, description="carrier (centre) frequency f0 [Hz]")
+    bandwidth_hz: float = Field(250e6, gt=0, le=100e9, description="swept bandwidth B [Hz]")
+    pri_s: float = Field(0.5e-3, ge=1e-6, le=1.0, description="pulse (chirp) repetition interval [s]")
+    chirp_duration_s: float | None = Field(None, ge=1e-7, le=1.0, description="chirp duration [s]; default = PRI")
     samples_per_chirp: int = Field(128, ge=8, le=16384, description="complex ADC samples per chirp")
-    adc_rate_hz: float | None = Field(None, gt=0, description="ADC rate [Hz]; default fills the chirp")
-    max_range_m: float = Field(10.0, gt=0, description="largest range the user needs [m]")
+    adc_rate_hz: float | None = Field(None, gt=0, le=1e11, description="ADC rate [Hz]; default fills the chirp")
+    max_range_m: float = Field(10.0, ge=1e-3, le=1e4, description="largest range the user needs [m]")
 
     @model_validator(mode="after")
     def _consistent(self) -> "Waveform":
+        if self.bandwidth_hz >= 2 * self.carrier_hz:
+            raise ValueError(f"bandwidth_hz ({self.bandwidth_hz:g} Hz) must be below twice carrier_hz: the "
+                             "sweep f0 - B/2 .. f0 + B/2 would pass through 0 Hz")
         if self.chirp_s > self.pri_s * (1 + 1e-9):
             raise ValueError(f"chirp_duration_s ({self.chirp_s:g} s) must not exceed pri_s ({self.pri_s:g} s)")
         if self.samples_per_chirp / self.fs > self.chirp_s * (1 + 1e-9):

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from processing.dsp import Signature, signatures
+from processing.dsp_config import check_recording
 from processing.pathset import PathSet
 from processing.synthesis import iter_synthesis
 from rtchannel.backends import MESH_BACKENDS, backend_function
@@ -149,6 +150,7 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
         `SimulationResult` with `.signatures`, `.iq`, `.timing`, `.config`, `.save(path)`, `.plot(dir)`.
     """
     radar = RadarConfig() if radar is None else radar
+    check_recording(motion.duration, radar.waveform, radar.dsp, len(radar.links), keep_iq)
     if scene is not None:
         if backend in MESH_BACKENDS:
             backend_options["scene"] = scene

@@ -26,13 +26,14 @@ from processing.dsp import DSPConfig
 from processing.receiver import ANCORTEK_2400T2R4, ReceiverConfig
 from processing.waveform import Waveform
 
-MONOSTATIC_TOLERANCE_M = 0.1  # tx and rx closer than this share one position (co-located horns)
+MONOSTATIC_TOLERANCE_M = 0.1
+MAX_COORDINATE_M = 1e4  # antenna coordinates beyond 10 km are a unit mistake, not a room  # tx and rx closer than this share one position (co-located horns)
 
 
 class Link(BaseModel):
     """One transmitter -> receiver link. Positions in metres."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$")
     tx: tuple[float, float, float]
@@ -45,6 +46,9 @@ class Link(BaseModel):
     def _finite(cls, v):
         if v is not None and not np.all(np.isfinite(v)):
             raise ValueError("antenna position must be finite")
+        if v is not None and np.max(np.abs(v)) > MAX_COORDINATE_M:
+            raise ValueError(f"antenna position {tuple(v)} is more than {MAX_COORDINATE_M:g} m from the origin "
+                             "in some coordinate (a room-scale simulator; check the units: metres)")
         return v
 
     @property
@@ -67,7 +71,7 @@ def _seed_links() -> list[Link]:
 class RadarConfig(BaseModel):
     """Waveform, DSP settings and links of a (distributed MIMO) radar. Defaults: the seed's 2x2 system."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     waveform: Waveform = Field(default_factory=Waveform)
     dsp: DSPConfig = Field(default_factory=DSPConfig)
@@ -76,7 +80,7 @@ class RadarConfig(BaseModel):
                                     description="antenna pattern of links without their own")
     receiver: ReceiverConfig | None = Field(default_factory=lambda: ANCORTEK_2400T2R4.receiver,
                                             description="transmit power and receiver noise; None: noiseless")
-    orientation_deg: float = Field(0.0, allow_inf_nan=False, description="rotation [deg] about z applied to "
+    orientation_deg: float = Field(0.0, allow_inf_nan=False, ge=-1e6, le=1e6, description="rotation [deg] about z applied to "
                                    "the links as given (the seed's direction angle); kept for provenance")
 
     @model_validator(mode="after")
@@ -99,9 +103,24 @@ class RadarConfig(BaseModel):
 
     @classmethod
     def from_file(cls, path: str | Path) -> "RadarConfig":
-        """Load from YAML or JSON; raises pydantic's ValidationError naming a bad field."""
-        text = Path(path).read_text()
-        data = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)
+        """Load from YAML or JSON; raises pydantic's ValidationError naming a bad field, or
+        `rtchannel.errors.ConfigError` (one line naming the file) for syntax errors and non-mappings."""
+        from rtchannel.errors import ConfigError
+
+        path = Path(path)
+        if path.stat().st_size > 1_000_000:  # a radar description is a few hundred bytes
+            raise ConfigError(f"radar config {path}: larger than 1 MB; not a radar configuration")
+        text = path.read_text(errors="replace")
+        try:
+            data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+        except (json.JSONDecodeError, yaml.YAMLError) as e:
+            mark = getattr(e, "problem_mark", None)  # YAML marks count lines from 0, JSON from 1
+            line = mark.line + 1 if mark is not None else getattr(e, "lineno", None)
+            where = f" line {line}" if line else ""
+            raise ConfigError(f"radar config {path}:{where}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}") \
+                from None
+        if data is not None and not isinstance(data, dict):
+            raise ConfigError(f"radar config {path}: expected a mapping (waveform, dsp, links, ...) at the top level")
         return cls.model_validate(data or {})
 
     def rotated(self, angle_deg: float) -> "RadarConfig":

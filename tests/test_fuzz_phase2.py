@@ -1,6 +1,6 @@
-"""PHASE 2 of issue 13 (hardening): failing inputs for the parts other engineers are rewriting now.
+"""PHASE 2 of issue 13 (hardening): radar/waveform/DSP bounds, plans and the commands' own arguments.
 
-Everything here is marked xfail with the reason; remove the mark when the fix lands. Cases that would
+Cases still marked xfail wait for their fix (the reason says which); the others are regression tests. Cases that would
 allocate many GiB or hang with today's code are ``run=False`` (listed, not executed). The contract is the
 same as in `test_fuzz_inputs.py`: one line on stderr naming the file/field, exit status 2, before any
 long work; a valid input gives finite output.
@@ -48,7 +48,6 @@ SAFE_RADAR = [
 ]
 
 
-@pytest.mark.xfail(reason=P2 + "radar.py/waveform.py: non-finite and absurd values, YAML syntax errors", strict=False)
 @pytest.mark.parametrize("yaml_text, needle", SAFE_RADAR)
 def test_radar_yaml_values(tmp_path, capsys, yaml_text, needle):
     cfg = tmp_path / "radar.yaml"
@@ -58,8 +57,6 @@ def test_radar_yaml_values(tmp_path, capsys, yaml_text, needle):
     assert needle in line
 
 
-@pytest.mark.xfail(run=False, reason=P2 + "waveform/dsp: PRI 1e-9 s and window_chirps 1e9 allocate many GiB today; "
-                   "compute chirps/windows from the inputs and refuse before allocating")
 @pytest.mark.parametrize("yaml_text", ["waveform:\n  pri_s: 1.0e-9\n", "dsp:\n  window_chirps: 1000000000\n"])
 def test_radar_sizes_refused_before_allocating(tmp_path, capsys, yaml_text):
     cfg = tmp_path / "radar.yaml"
@@ -67,8 +64,6 @@ def test_radar_sizes_refused_before_allocating(tmp_path, capsys, yaml_text):
     _one_line_exit_2(capsys, ["simulate", "--radar-config", str(cfg), "--out", str(tmp_path / "o"), "--quiet"])
 
 
-@pytest.mark.xfail(reason=P2 + "pipeline/dsp: a recording shorter than one DSP window must be refused before "
-                   "simulating (today the signature writer refuses it after the simulation)", strict=False)
 def test_recording_shorter_than_one_window_before_simulating(tmp_path, capsys):
     cfg = tmp_path / "radar.yaml"
     cfg.write_text("dsp:\n  window_chirps: 4096\n")  # 2 s at 0.5 ms; the motion lasts ~1.4 s
@@ -84,8 +79,6 @@ field = st.sampled_from(["carrier_hz", "bandwidth_hz", "pri_s", "samples_per_chi
                          "max_range_m", "noise_figure_db", "tx", "rx", "name", "beamwidth_deg"])
 
 
-@pytest.mark.xfail(reason=P2 + "radar YAML: every value validated (finite, bounded), syntax errors as ConfigError",
-                   strict=False)
 @settings(max_examples=60, deadline=None, derandomize=True, database=None, phases=(Phase.explicit, Phase.generate),
           suppress_health_check=list(HealthCheck))
 @given(doc=st.dictionaries(section, st.one_of(value, st.dictionaries(field, value, max_size=3),
@@ -159,15 +152,12 @@ CLI_CASES = [
 ]
 
 
-@pytest.mark.xfail(reason=P2 + "CLI commands: argument ranges/types checked before any work", strict=False)
 @pytest.mark.parametrize("args, needle", CLI_CASES)
 def test_cli_argument_checks(tmp_path, capsys, args, needle):
     line = _one_line_exit_2(capsys, [*args, "--out", str(tmp_path / "o")])
     assert needle in line
 
 
-@pytest.mark.xfail(reason=P2 + "CLI: --out that is a file must be refused before simulating (today: after, "
-                   "as an OSError line)", strict=False)
 def test_out_is_a_file_checked_before_simulating(tmp_path, capsys):
     f = tmp_path / "file"
     f.write_text("x")

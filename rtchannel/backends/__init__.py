@@ -6,6 +6,7 @@ kernels and the avatar, which a points-only run never needs.
 from __future__ import annotations
 
 import inspect
+import math
 
 BACKENDS = ("points", "facets", "sionna")
 MESH_BACKENDS = ("facets", "sionna")
@@ -41,3 +42,27 @@ def check_options(backend: str, options: dict, reserved: tuple[str, ...] = RESER
     bad = unknown_options(backend, options, reserved)
     if bad:
         raise ValueError(f"backend '{backend}' has no option '{bad[0]}'")
+
+
+def check_option_values(backend: str, options: dict) -> None:
+    """Raise ValueError naming the first option whose value does not fit the backend's type annotation
+    (e.g. ``body_rcs_m2=abc``) or is not a scalar (options come from command lines and YAML plans)."""
+    import typing
+
+    from pydantic import TypeAdapter, ValidationError
+
+    hints = typing.get_type_hints(backend_function(backend))
+    for name, value in options.items():
+        if isinstance(value, (dict, list, tuple, set)):
+            raise ValueError(f"backend option '{name}': expected a single value, got a {type(value).__name__}")
+        hint = hints.get(name)
+        if hint is None or name == "scene":
+            continue
+        try:
+            TypeAdapter(hint).validate_python(value, strict=False)
+        except ValidationError as e:
+            raise ValueError(f"backend option '{name}' = {value!r}: {e.errors()[0]['msg']}") from None
+        except Exception:  # noqa: BLE001 - an annotation pydantic cannot check (a library object): skip
+            continue
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"backend option '{name}' = {value!r}: must be finite")

@@ -12,7 +12,7 @@ import warnings
 from pydantic import ValidationError
 
 from processing.errors import one_line
-from rtchannel.cli.common import EXIT_USAGE, UserError, validation_line
+from rtchannel.cli.common import EXIT_USAGE, OneLineParser, UserError, validation_line
 from rtchannel.errors import USER_ERRORS
 
 
@@ -25,7 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
     from rtchannel.cli.render import add_render
     from rtchannel.cli.simulate import add_simulate
 
-    parser = argparse.ArgumentParser(prog="rtchannel", description="Motion-capture driven MIMO radar simulator.")
+    parser = OneLineParser(prog="rtchannel", description="Motion-capture driven MIMO radar simulator.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (add_simulate, add_render, add_dataset, add_classifier_commands, add_compare, add_bench):
         add(sub)
@@ -35,7 +35,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # --help (0) or a bad argument (2, one line already printed)
+        return e.code if isinstance(e.code, int) else EXIT_USAGE
 
     def one_line_warning(message, category, filename, lineno, file=None, line=None):
         print(f"warning: {message}", file=sys.stderr)

@@ -7,7 +7,9 @@ from pathlib import Path
 
 def cmd_bench(args) -> int:
     from rtchannel.analysis.chain_bench import bench_chain, exact_duration_walk
-    from rtchannel.cli.common import UserError, parse_options
+    from rtchannel.cli.common import UserError, check_output, parse_options
+
+    check_output(args.out, "dir")
 
     if args.chain:
         options = parse_options(args.option, per_backend=True).get(args.chain, {})
@@ -42,6 +44,8 @@ def cmd_bench(args) -> int:
 
 def add_bench(sub) -> None:
     """Register the `bench` subcommand."""
+    from rtchannel.cli.common import finite_float, positive_int
+
     p = sub.add_parser("bench", help="speed against error of backend settings (or time one chain)",
                        description="Default: sweep backend settings (backend, LOD, trace rate, rays, depth, "
                        "walls) on a procedural walk with the two seed radars, measure wall time per simulated "
@@ -52,8 +56,8 @@ def add_bench(sub) -> None:
     p.add_argument("--option", action="append", metavar="BACKEND.NAME=VALUE", help="backend option for --chain")
     p.add_argument("--quick", action="store_true",
                    help="sweep without Sionna (reference: facets on the full mesh); minutes instead of an hour")
-    p.add_argument("--repeats", type=int, default=3, help="timed repeats per setting (default 3)")
-    p.add_argument("--duration", type=float, default=5.0, help="simulated walk length [s] (default 5)")
+    p.add_argument("--repeats", type=positive_int, default=3, help="timed repeats per setting (default 3)")
+    p.add_argument("--duration", type=finite_float, default=5.0, help="simulated walk length [s] (default 5)")
     p.add_argument("--out", type=Path, help="output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_bench)

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rtchannel.cli.common import check_output, positive_int
+
 _COND = re.compile(r"^\s*([A-Za-z0-9_.]+)\s*(!=|=|~)\s*(.*?)\s*$")
 
 
@@ -179,6 +181,7 @@ def train_spec(spec: str, args, out: Path, log=print):
 def cmd_train(args) -> int:
     if args.out.suffix == "":
         args.out = args.out.with_suffix(".pt")
+    check_output(args.out, "file")
     train_spec(args.data, args, args.out)
     stem = args.out.with_suffix("")
     print(f"wrote {args.out}, {stem}_curves.png, {stem}_val_confusion.png, {stem}_val_confusion.csv")
@@ -252,6 +255,8 @@ def cmd_evaluate(args) -> int:
     from processing.classifier.train import dataset_arrays
 
     clf = _load_model(args.model)
+    out = args.out or args.model.with_name(args.model.stem + "_eval")
+    check_output(out, "dir")
     if args.data is not None:
         reader, idx = open_spec(args.data)
         try:
@@ -262,7 +267,6 @@ def cmd_evaluate(args) -> int:
     else:
         x, y, names = _recording_inputs(clf, args)
         title = f"{args.model.name} on recordings {args.recordings}"
-    out = args.out or args.model.with_name(args.model.stem + "_eval")
     evaluate_arrays(clf, x, y, out, title, names)
     print(f"wrote {out}/confusion.png, confusion.csv, metrics.json, predictions.csv")
     return 0
@@ -296,6 +300,7 @@ def cmd_crossval(args) -> int:
 
     plan = _crossval_plan(args)
     out = args.out if args.out.suffix else args.out.with_suffix(".csv")
+    check_output(out, "file")
     out.parent.mkdir(parents=True, exist_ok=True)
     rows = []
     for exp in plan:
@@ -349,7 +354,7 @@ def add_classifier_commands(sub) -> None:
     g.add_argument("--recordings", type=Path, help="a .dat file or a folder of them")
     p.add_argument("--label", help="activity of every recording (default: from the file names, e.g. "
                    "fall_01.dat or Glasgow codes 1P36A06R01.dat)")
-    p.add_argument("--channels", type=int, default=1, help="interleaved receive channels per .dat file "
+    p.add_argument("--channels", type=positive_int, default=1, help="interleaved receive channels per .dat file "
                    "(= number of model links: one file per sample; 1: files NAME_radar1.dat, NAME_radar2.dat)")
     p.add_argument("--conjugate", action="store_true", help="conjugate recorded IQ (opposite I/Q convention)")
     p.add_argument("--allow-partial", action="store_true", help="drop an incomplete last sweep")

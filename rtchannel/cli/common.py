@@ -2,6 +2,8 @@
 option parsing, and building the API objects (`Motion`, `Radar`) from arguments."""
 from __future__ import annotations
 
+import argparse
+import math
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +14,36 @@ EXIT_USAGE = 2
 
 class UserError(Exception):
     """A problem with what the user asked for; printed as one line, exit status 2."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with the project's error contract: a bad argument is one line on stderr, exit status 2
+    (argparse's own default prints the usage first: two lines)."""
+
+    def error(self, message):  # noqa: D102 - argparse hook
+        self.exit(EXIT_USAGE, f"error: {self.prog}: {message}\n")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value}")
+    return value
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number (no nan/inf)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
 
 
 def validation_line(err: ValidationError, what: str) -> str:
@@ -26,14 +58,14 @@ def add_motion_args(p) -> None:
     """Arguments choosing a procedural activity or a motion-capture file (read by `build_motion`)."""
     p.add_argument("--activity", default="walk", help="fall, walk, stand, sit or pick (default walk)")
     p.add_argument("--motion-file", type=Path, help="BVH or C3D motion capture instead of a procedural motion")
-    p.add_argument("--height", type=float, default=1.75, help="body height [m] (default 1.75)")
-    p.add_argument("--speed", type=float, help="walking speed [m/s] (procedural walk only)")
-    p.add_argument("--duration", type=float, help="activity duration [s] (procedural)")
-    p.add_argument("--distance", type=float, help="walking distance [m] (procedural walk only, default 4)")
-    p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"),
+    p.add_argument("--height", type=finite_float, default=1.75, help="body height [m] (default 1.75)")
+    p.add_argument("--speed", type=finite_float, help="walking speed [m/s] (procedural walk only)")
+    p.add_argument("--duration", type=finite_float, help="activity duration [s] (procedural)")
+    p.add_argument("--distance", type=finite_float, help="walking distance [m] (procedural walk only, default 4)")
+    p.add_argument("--start", type=finite_float, nargs=2, metavar=("X", "Y"),
                    help="start of the hips' ground point [m]; default: walks are centred on the origin "
                    "(toward Radar 1 at direction 1), other activities start at the origin")
-    p.add_argument("--fps", type=float, default=60.0, help="motion frame rate [Hz] (default 60)")
+    p.add_argument("--fps", type=finite_float, default=60.0, help="motion frame rate [Hz] (default 60)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
@@ -42,7 +74,34 @@ def add_radar_args(p) -> None:
     p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--direction", type=int, default=1, help="seed direction 1..18 (Radar 1 at 20(k-1) deg)")
-    g.add_argument("--angle-deg", type=float, help="rotate all radars by this angle about z instead [deg]")
+    g.add_argument("--angle-deg", type=finite_float, help="rotate all radars by this angle about z instead [deg]")
+
+
+def check_output(path: Path | None, kind: str = "dir") -> None:
+    """Refuse, before any work, an output that cannot be written: `kind` "dir" (a folder the command
+    fills; created here) or "file" (its folder is created). Names the path; catches an existing file
+    where a folder is needed (and the reverse), a read-only location and a full device (a probe write)."""
+    import os
+    import uuid
+
+    if path is None:
+        return
+    path = Path(path)
+    folder = path if kind == "dir" else path.parent
+    if kind == "dir" and path.exists() and not path.is_dir():
+        raise UserError(f"--out {path}: exists and is not a folder")
+    if kind == "file" and path.is_dir():
+        raise UserError(f"--out {path}: is a folder, expected a file name")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".rtchannel-probe-{os.getpid()}-{uuid.uuid4().hex[:6]}"
+        with open(probe, "wb") as f:
+            f.write(b"\0" * 4096)
+            f.flush()
+            os.fsync(f.fileno())
+        probe.unlink()
+    except OSError as e:
+        raise UserError(f"--out {path}: cannot write there ({e.strerror or e})") from None
 
 
 def split_list(values: list[str] | None) -> list[str]:
@@ -76,7 +135,12 @@ def load_radar(args):
         radar = RadarConfig.from_file(args.radar_config) if args.radar_config else RadarConfig()
     except ValidationError as e:
         raise UserError(validation_line(e, f"radar config {args.radar_config}")) from None
-    angle = args.angle_deg if args.angle_deg is not None else direction_angles(args.direction)[0]
+    if args.angle_deg is not None and not (math.isfinite(args.angle_deg) and abs(args.angle_deg) <= 3600):
+        raise UserError(f"--angle-deg must be a finite angle within +-3600 deg, got {args.angle_deg}")
+    try:
+        angle = args.angle_deg if args.angle_deg is not None else direction_angles(args.direction)[0]
+    except ValueError as e:
+        raise UserError(f"--direction: {e}") from None
     return radar.rotated(angle), angle
 
 

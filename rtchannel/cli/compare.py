@@ -7,7 +7,7 @@ from pathlib import Path
 def cmd_compare(args) -> int:
     from tqdm import tqdm
 
-    from rtchannel.cli.common import UserError, load_radar, parse_options, split_list
+    from rtchannel.cli.common import UserError, check_output, load_radar, parse_options, split_list
     from rtchannel.analysis.compare import compare
     from rtchannel.motion.procedural import ACTIVITIES
     from rtchannel.backends import BACKENDS
@@ -25,6 +25,7 @@ def cmd_compare(args) -> int:
     if unknown:
         raise UserError(f"--option for backend '{unknown[0]}' which is not in --backends")
     radar, _ = load_radar(args)
+    check_output(args.out, "dir")
     with tqdm(total=len(args.backends) * len(args.activities), unit="run", disable=args.quiet or None) as bar:
         files = compare(args.backends, args.activities, radar, args.out, seed=args.seed, height=args.height,
                         options=options, progress=bar.update)

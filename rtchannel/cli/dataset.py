@@ -28,7 +28,7 @@ def add_dataset(sub) -> None:
 def cmd_dataset(args) -> int:
     from pydantic import ValidationError
 
-    from rtchannel.cli.common import UserError, validation_line
+    from rtchannel.cli.common import UserError, check_output, validation_line
 
     if args.info is not None:
         from processing.dataset_store import DatasetReader
@@ -71,6 +71,8 @@ def cmd_dataset(args) -> int:
               f"{len({it.group for it in items})} motion groups, backend {plan.backend}")
         return 0
     from rtchannel.dataset.runner import PlanMismatchError, run_plan
+
+    check_output(args.out, "dir")  # after the plan is valid: a bad plan leaves no folder behind
 
     try:
         s = run_plan(plan, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rtchannel.cli.common import UserError, add_motion_args, add_radar_args, build_motion, load_radar
+from rtchannel.cli.common import UserError, add_motion_args, add_radar_args, build_motion, check_output, load_radar
 from rtchannel.cli.simulate import add_chair_arg, scene_with_chair
 
 
@@ -30,6 +30,9 @@ def cmd_render(args) -> int:
     from rtchannel.scene.render import render_scene, render_strip
 
     radar, _ = load_radar(args)
+    check_output(args.out, "file")
+    if args.strip is not None:
+        check_output(args.strip, "file")
     motion = build_motion(args)
     frames = args.frames or list(np.linspace(0, motion.n_frames - 1, 5).round().astype(int))
     bad = [f for f in frames if not 0 <= f < motion.n_frames]

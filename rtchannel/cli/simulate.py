@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rtchannel.cli.common import UserError, add_motion_args, add_radar_args, build_motion, load_radar, parse_options
+from rtchannel.cli.common import (UserError, add_motion_args, add_radar_args, build_motion, check_output, load_radar,
+                                  parse_options)
 
 
 def add_simulate(sub) -> None:
@@ -47,7 +48,7 @@ def scene_with_chair(scene, motion, chair: str):
 def backend_options(args) -> dict:
     """Backend keyword options from --lod/--option (values parsed as YAML scalars), checked against the
     backend; --scene is passed separately (`simulate(scene=...)`)."""
-    from rtchannel.backends import BACKENDS, check_options
+    from rtchannel.backends import BACKENDS, check_option_values, check_options
 
     if args.backend not in BACKENDS:
         raise UserError(f"unknown backend '{args.backend}'; choose one of {', '.join(BACKENDS)}")
@@ -59,6 +60,7 @@ def backend_options(args) -> dict:
         opts["lod"] = args.lod
     try:
         check_options(args.backend, opts, reserved=("motion", "radar", "progress", "timing", "stats", "scene"))
+        check_option_values(args.backend, opts)
     except ValueError as e:
         raise UserError(str(e)) from None
     return opts
@@ -70,9 +72,13 @@ def cmd_simulate(args) -> int:
     from rtchannel.pipeline import simulate
     from rtchannel.scene.spec import Scene
 
+    from processing.dsp_config import check_recording
+
     options = backend_options(args)
     radar, angle = load_radar(args)
+    check_output(args.out, "dir")
     motion = build_motion(args)
+    check_recording(motion.duration, radar.waveform, radar.dsp, len(radar.links), args.keep_iq)
     scene = Scene(args.scene) if args.scene is not None else None
     if args.backend != "points":  # the points backend is free space: no furniture
         scene = scene_with_chair(scene, motion, args.chair)
