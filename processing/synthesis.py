@@ -140,7 +140,7 @@ def _warn_nyquist(rate_max: float, delay_max: float, wf: Waveform, link: str, re
                       NyquistWarning, stacklevel=4)
 
 
-GRID_MIN_PATHS = 64  # below this the exact tone sum is as fast as the gridded one (measured)
+GRID_MIN_PATHS = 64  # below this the exact tone sum is used (cheap at the points backend's 21 paths, and exact)
 
 
 def grid_pieces(paths: PathSet) -> tuple:

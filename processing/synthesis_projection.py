@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from processing.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
@@ -48,35 +47,6 @@ def projection_weights(wf: Waveform, cfg) -> tuple[np.ndarray, np.ndarray, float
         return w, rng, wf.carrier_hz
     h, f_eff = coherent_weights(wf, cfg)
     return np.concatenate([w, h[:, None]], axis=1), rng, f_eff
-
-
-@numba.njit(parallel=True, cache=True, fastmath=True)
-def _rows_times(x, wr, wi, out):  # pragma: no cover - jitted
-    """out[C, 2K] (re, im adjacent) = x[C, 2N] (re, im adjacent; float32 or float64) @ (wr + j wi) [N, K]."""
-    n_k = wr.shape[1]
-    for c in numba.prange(x.shape[0]):
-        acc_r = np.zeros(n_k)
-        acc_i = np.zeros(n_k)
-        for n in range(wr.shape[0]):
-            xr, xi = float(x[c, 2 * n]), float(x[c, 2 * n + 1])
-            for k in range(n_k):
-                acc_r[k] += xr * wr[n, k] - xi * wi[n, k]
-                acc_i[k] += xr * wi[n, k] + xi * wr[n, k]
-        for k in range(n_k):
-            out[c, 2 * k] = acc_r[k]
-            out[c, 2 * k + 1] = acc_i[k]
-
-
-def project_rows(x: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """x [C, N] @ weights [N, K] (complex128 result) accumulated in float64 without BLAS (whose threads fight
-    numba's for the cores)."""
-    x = np.ascontiguousarray(x)
-    out = np.zeros((x.shape[0], weights.shape[1]), np.complex128)
-    if x.size:
-        real = x.view(np.float32 if x.dtype == np.complex64 else np.float64)
-        w = np.asarray(weights, np.complex128)
-        _rows_times(real, np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag), out.view(np.float64))
-    return out
 
 
 def synthesise_projection(paths: PathSet, wf: Waveform, cfg, receiver=None, seed=0, method: str = "auto",
@@ -109,6 +79,8 @@ def synthesise_projection(paths: PathSet, wf: Waveform, cfg, receiver=None, seed
         t_all = np.concatenate(t_parts) if t_parts else np.zeros(0)
         iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
         return t_all, project(iq, wf, cfg, t0=float(t_all[0]) if t_all.size else 0.0)
+    from processing.synthesis_grid import project_rows  # numba: imported only on the grid route
+
     weights, rng, f_eff = projection_weights(wf, cfg)
     n_range = rng.size
     coherent = cfg.range_sum == "coherent"

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from processing.dsp import Signature, signatures
+from processing.dsp import Signature, signatures, signatures_from_projection
 from processing.pathset import PathSet
 from processing.synthesis import iter_synthesis
 from rtchannel.backends import MESH_BACKENDS, backend_function
@@ -99,7 +99,6 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
     `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (signal-layer augmentation),
     and the kept IQ is the transformed one.
     """
-    from processing.dsp import signatures_from_projection
     from processing.receiver import receive
     from processing.synthesis_projection import synthesise_projection
 
