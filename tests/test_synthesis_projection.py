@@ -30,6 +30,8 @@ from rtchannel.radar import Link, RadarConfig
 
 WF = Waveform()  # seed radar: 24.125 GHz, 250 MHz, 0.5 ms, 128 samples
 GWF = Waveform(carrier_hz=5.8e9, bandwidth_hz=400e6, pri_s=1e-3, samples_per_chirp=128)  # Glasgow-like
+# 100 samples (not a power of two) at 300 kHz in a 0.4 ms chirp every 0.5 ms: fs and slope not tied to N / PRI
+SWF = Waveform(samples_per_chirp=100, chirp_duration_s=0.4e-3, adc_rate_hz=300e3)
 # The Glasgow script's band (3.75-11.25 m) with the scene inside it
 GLASGOW = DSPConfig.glasgow()
 MODES = {
@@ -37,6 +39,7 @@ MODES = {
     "seed-incoherent": (WF, DSPConfig(range_sum="incoherent"), (1.0, 6.0)),
     "seed-magnitude-hann": (WF, DSPConfig(range_sum="magnitude", range_window="hann"), (1.0, 6.0)),
     "glasgow": (GWF, GLASGOW, (4.5, 10.0)),
+    "short-adc-hann": (SWF, DSPConfig(range_window="hann", coherent_offset_samples=0), (1.0, 6.0)),
 }
 TV_MAX = 1e-4
 
