@@ -10,7 +10,9 @@ With --compare TREE the same measurements run on another source tree (e.g. the c
 `git archive <commit> | tar -x -C /tmp/before`), in a worker process per tree, interleaved repeat by repeat
 so that every tree sees the same machine state. Reports medians [s] of wall time (and of process CPU time)
 and wall ns per path-chirp (present paths per frame x chirps, summed over links).
-Run: .venv/bin/python benchmarks/bench_synthesis.py [--repeats 5] [--compare DIR] [--paths FILE]
+With --chain it also times the whole chain, `rtchannel.pipeline.simulate` of the facets walk (backend included;
+as `rtchannel bench --chain facets`, which keeps the IQ, and with simulate's default, which does not).
+Run: .venv/bin/python benchmarks/bench_synthesis.py [--repeats 5] [--compare DIR] [--paths FILE] [--chain]
 The machine is shared: timings are noisy; medians over repeats are reported.
 """
 from __future__ import annotations
@@ -48,11 +50,22 @@ def worker(paths_file: Path) -> None:
 
     sets = pickle.loads(paths_file.read_bytes())
     radar = RadarConfig()
+    motion = None
     for line in sys.stdin:
         backend, route = line.split()
-        paths = sets[backend]
         if route not in ROUTES:
             raise ValueError(route)
+        if backend == "chain":
+            from rtchannel.analysis.chain_bench import exact_duration_walk
+            from rtchannel.pipeline import simulate
+
+            motion = exact_duration_walk(5.0) if motion is None else motion
+            t0, c0 = time.perf_counter(), time.process_time()
+            res = simulate(motion, radar, backend="facets", keep_iq=route == "full")
+            print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() - c0, **res.timing,
+                              "path_chirps": float("nan")}), flush=True)
+            continue
+        paths = sets[backend]
         timing: dict = {}
         t0, c0 = time.perf_counter(), time.process_time()
         process_paths(paths, radar, keep_iq=route == "full", timing=timing)
@@ -69,6 +82,7 @@ def main() -> None:
     ap.add_argument("--compare", type=Path, action="append", default=[], help="another source tree to time")
     ap.add_argument("--paths", type=Path, default=Path("/tmp/bench_synthesis_paths.pkl"),
                     help="path-set cache (made if missing)")
+    ap.add_argument("--chain", action="store_true", help="also time simulate() of the facets walk end to end")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -83,7 +97,7 @@ def main() -> None:
         env = {**os.environ, "PYTHONPATH": str(tree)}
         procs[tree] = subprocess.Popen([sys.executable, __file__, "--worker", "--paths", str(args.paths)], cwd="/",
                                        env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    cases = [(b, r) for b in ("facets", "points") for r in ROUTES]
+    cases = [(b, r) for b in ("facets", "points") + (("chain",) if args.chain else ()) for r in ROUTES]
     runs = {(tree, b, r): [] for tree in trees for b, r in cases}
 
     def ask(tree, backend, route):
@@ -106,11 +120,12 @@ def main() -> None:
     for tree in trees:
         for b, r in cases:
             rs = runs[(tree, b, r)]
-            med = {k: statistics.median(x[k] for x in rs) for k in ("wall", "cpu", "synthesis", "dsp")}
+            keys = ("wall", "cpu", "synthesis", "dsp") + (("backend",) if b == "chain" else ())
+            med = {k: statistics.median(x[k] for x in rs) for k in keys}
             rows.append({"tree": str(tree), "backend": b, "route": r, "repeats": len(rs),
                          "median_s": {k: round(v, 4) for k, v in med.items()},
-                         "wall_ns_per_path_chirp": round(med["wall"] / rs[0]["path_chirps"] * 1e9, 2),
-                         "path_chirps": rs[0]["path_chirps"]})
+                         "wall_ns_per_path_chirp": None if b == "chain" else round(med["wall"] / rs[0]["path_chirps"] * 1e9, 2),
+                         "path_chirps": None if b == "chain" else rs[0]["path_chirps"]})
     print(json.dumps({"load_average_after": os.getloadavg(), "rows": rows}, indent=1))
 
 
