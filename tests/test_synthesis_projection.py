@@ -11,12 +11,11 @@ removes the slow part of the signal, leaving a smaller moving part; the test sce
 so that amplification stays below ~10). Mean velocity: |sum_v v (p - q)| <= max|v| x 2 TV of the column, so
 TV <= 1e-4 bounds it by 2e-4 x the largest velocity of the axis.
 """
-import math
 
 import numpy as np
 import pytest
 
-from processing.dsp import DSPConfig, signatures
+from processing.dsp import DSPConfig
 from processing.fast_time import project, range_weights
 from processing.metrics import pvt_tv_distance
 from processing.pathset import PathSet
