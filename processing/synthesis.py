@@ -122,81 +122,121 @@ def tone_sum(delays: np.ndarray, gains: np.ndarray, wf: Waveform) -> np.ndarray:
 
 def _check_nyquist(delays, gains, rates, wf: Waveform, link: str, reported: set) -> None:
     present = gains != 0
-    if not present.any():
-        return
-    v = np.abs(rates[present]) * C0 / 2
-    if "v" not in reported and v.max() > wf.v_max:
+    if present.any():
+        _warn_nyquist(float(np.abs(rates[present]).max()), float(delays[present].max()), wf, link, reported)
+
+
+def _warn_nyquist(rate_max: float, delay_max: float, wf: Waveform, link: str, reported: set) -> None:
+    """Warn (once per kind) if the largest |delay rate| or delay of the present paths aliases."""
+    v = rate_max * C0 / 2
+    if "v" not in reported and v > wf.v_max:
         reported.add("v")
-        warnings.warn(f"link '{link}': a path moves at {v.max():.2f} m/s radially, above v_max = "
-                      f"{wf.v_max:.2f} m/s (lambda/4PRI): its Doppler aliases", NyquistWarning, stacklevel=3)
-    tau = delays[present]
-    if "r" not in reported and tau.max() >= wf.max_unambiguous_delay:
+        warnings.warn(f"link '{link}': a path moves at {v:.2f} m/s radially, above v_max = "
+                      f"{wf.v_max:.2f} m/s (lambda/4PRI): its Doppler aliases", NyquistWarning, stacklevel=4)
+    if "r" not in reported and delay_max >= wf.max_unambiguous_delay:
         reported.add("r")
-        warnings.warn(f"link '{link}': a path at range {tau.max() * C0 / 2:.2f} m lies beyond the maximum "
+        warnings.warn(f"link '{link}': a path at range {delay_max * C0 / 2:.2f} m lies beyond the maximum "
                       f"unambiguous range {wf.max_unambiguous_range:.2f} m: its beat frequency aliases",
-                      NyquistWarning, stacklevel=3)
+                      NyquistWarning, stacklevel=4)
 
 
-GRID_MIN_PATHS = 64  # below this the exact tone sum is as fast as the gridded one (measured)
+GRID_MIN_PATHS = 64  # below this the exact tone sum is used (cheap at the points backend's 21 paths, and exact)
 
 
-def _pieces(paths: PathSet, evaluate) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(knots [I+1], delay cubics [4, I, P'], gains at piece start/end [I, P']) of a path set.
+def grid_pieces(paths: PathSet) -> tuple:
+    """(knots [I+1], y0, y1, m0, m1, g0, g1 [I, P'], largest |delay rate| and largest delay [s] of the
+    present paths) of a path set for `synthesis_grid`: per frame interval, the delays [s] and delay rates at
+    its ends, whose cubic Hermite interpolant is the delay inside it, and the complex gains at its ends
+    (linear in between).
 
-    Persistent paths: the delay spline's own pieces. Frame-local paths: frame k's paths extrapolated
-    with their rates and fading out, plus frame k+1's fading in (P' = 2P), as `_FrameLocalPaths` does.
+    Persistent paths: the frames' delays (gaps filled as `_PersistentPaths` does) with the delay rates, or
+    without rates the slopes of the same not-a-knot cubic spline, so the pieces are `_PersistentPaths`'
+    spline (P' = P; no copies). Frame-local paths: frame k's paths extrapolated with their rates and fading
+    out, plus frame k+1's fading in (P' = 2P), as `_FrameLocalPaths` does.
     """
-    if isinstance(evaluate, _PersistentPaths):
-        return evaluate.times, evaluate.spline.c, evaluate.gains[:-1], evaluate.gains[1:]
-    d, r, g = evaluate.delays, evaluate.rates, evaluate.gains
-    h = np.diff(evaluate.times)[:, None]
-    n_int, p = d.shape[0] - 1, d.shape[1]
-    coef = np.zeros((4, n_int, 2 * p))
-    coef[2, :, :p], coef[3, :, :p] = r[:-1], d[:-1]
-    coef[2, :, p:], coef[3, :, p:] = r[1:], d[1:] - r[1:] * h
-    zeros = np.zeros((n_int, p), np.complex128)
-    return (evaluate.times, coef, np.concatenate([g[:-1], zeros], axis=1),
-            np.concatenate([zeros, g[1:]], axis=1))
+    from processing.synthesis_grid import prepare_frames
+
+    t, g = paths.times, paths.gains
+    if paths.persistent:
+        d, rate_max, delay_max = prepare_frames(t, paths.delays, paths.delay_rates, g)
+        r = paths.delay_rates  # NaN at absent frames, read as 0 by the kernel (np.nan_to_num, as _PersistentPaths)
+        if r is None:
+            r = CubicSpline(t, d, axis=0)(t, 1)
+            present = g != 0
+            rate_max = float(np.abs(r[present]).max()) if present.any() else 0.0
+        return t, d[:-1], d[1:], r[:-1], r[1:], g[:-1], g[1:], rate_max, delay_max
+    present = g != 0
+    d = np.where(present, paths.delays, 0.0)
+    r = np.zeros_like(d) if paths.delay_rates is None else np.where(present, paths.delay_rates, 0.0)
+    h = np.diff(t)[:, None]
+    zeros = np.zeros((t.size - 1, d.shape[1]), np.complex128)
+    y0 = np.concatenate([d[:-1], d[1:] - r[1:] * h], axis=1)
+    y1 = np.concatenate([d[:-1] + r[:-1] * h, d[1:]], axis=1)
+    m = np.concatenate([r[:-1], r[1:]], axis=1)
+    return (t, y0, y1, m, m, np.concatenate([g[:-1], zeros], axis=1), np.concatenate([zeros, g[1:]], axis=1),
+            float(np.abs(r).max()) if r.size else 0.0, float(d.max()) if d.size else 0.0)
+
+
+def uses_grid(paths: PathSet, method: str = "auto") -> bool:
+    """Whether `iter_synthesis` takes the gridded route for this path set and method."""
+    if method not in ("auto", "exact", "grid"):
+        raise ValueError(f"synthesis method must be auto, exact or grid, got {method!r}")
+    return paths.n_frames >= 2 and (method == "grid" or (method == "auto" and paths.n_paths >= GRID_MIN_PATHS))
 
 
 def iter_synthesis(paths: PathSet, wf: Waveform, t_start: float | None = None, t_stop: float | None = None,
                    chunk_chirps: int = 1024, method: str = "auto",
-                   oversample: int = 8) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+                   oversample: int | None = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Yield (chirp start times [C] s, IQ [C, N] complex64) chunk by chunk over [t_start, t_stop].
 
     Defaults span the path set's frames. `method`: "exact" (per-path tone recurrence, cost ~ paths x
-    chirps x samples), "grid" (`synthesis_grid`: delay grid L = oversample x N with a third-order
-    sub-grid correction, per-path error below (pi/oversample)^4/24, -60 dB at 8x; cost ~ paths x chirps)
-    or "auto" (grid from GRID_MIN_PATHS paths on). Emits `NyquistWarning` (once per kind) when a present
-    path exceeds v_max or the maximum unambiguous range.
+    chirps x samples), "grid" (`synthesis_grid`: paths spread onto a grid of oversample x N cells with a
+    fitted kernel and inverse-FFT'd, relative error per path and sample below
+    `synthesis_kernel.spread_kernel(oversample).error_bound`, 1.8e-6 at the default oversample 4; cost ~
+    paths x chirps) or "auto" (grid from GRID_MIN_PATHS paths on). Emits `NyquistWarning` (once per kind)
+    when a present path exceeds v_max or the maximum unambiguous range.
     """
-    if method not in ("auto", "exact", "grid"):
-        raise ValueError(f"synthesis method must be auto, exact or grid, got {method!r}")
+    for t, iq in iter_weighted(paths, wf, None, t_start, t_stop, chunk_chirps, method, oversample):
+        yield t, iq.astype(np.complex64)
+
+
+def iter_weighted(paths: PathSet, wf: Waveform, weights: np.ndarray | None = None, t_start: float | None = None,
+                  t_stop: float | None = None, chunk_chirps: int = 1024, method: str = "auto",
+                  oversample: int | None = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Yield (chirp start times [C] s, iq @ weights [C, K] complex128) chunk by chunk, iq being the beat
+    signal [C, N] of `iter_synthesis` (in complex128; itself when `weights` [N, K] is None). With the grid
+    method and weights, iq is never formed: the kernel projects the spread grid (`synthesis_grid.spread`)."""
     t0 = paths.times[0] if t_start is None else t_start
     t1 = paths.times[-1] if t_stop is None else t_stop
     t_all = chirp_times(t0, t1, wf.pri_s)
-    evaluate = _PersistentPaths(paths) if paths.persistent else _FrameLocalPaths(paths)
-    use_grid = paths.n_frames >= 2 and (method == "grid" or (method == "auto" and paths.n_paths >= GRID_MIN_PATHS))
+    n = wf.samples_per_chirp
+    if weights is not None:
+        weights = np.asarray(weights, dtype=np.complex128)
+        if weights.ndim != 2 or weights.shape[0] != n:
+            raise ValueError(f"weights must be [{n}, K] (samples per chirp, outputs), got {weights.shape}")
+    use_grid = uses_grid(paths, method)
     reported: set = set()
     if use_grid:
-        from processing.synthesis_grid import gridded_tone_sum
+        from processing.synthesis_grid import OVERSAMPLE, grid_to_iq, projection_matrix, spread, spread_kernel
 
-        knots, coef, g0, g1 = _pieces(paths, evaluate)
+        kernel = spread_kernel(OVERSAMPLE if oversample is None else oversample)
+        knots, y0, y1, m0, m1, g0, g1, rate_max, delay_max = grid_pieces(paths)
         # the grid path never forms per-chirp delays in Python: check Nyquist on the frames' values
-        rates = (evaluate.dspline(paths.times) if paths.persistent else evaluate.rates)
-        _check_nyquist(np.where(paths.gains != 0, paths.delays, 0.0), paths.gains, rates, wf, paths.link,
-                       reported)
-        chunk_chirps = min(chunk_chirps, 512)  # the grid accumulator is (ORDER+1) x L per chirp
+        _warn_nyquist(rate_max, delay_max, wf, paths.link, reported)
+        matrix = None if weights is None else projection_matrix(weights, n, kernel)
+        for s in range(0, t_all.size, chunk_chirps):
+            t = t_all[s:s + chunk_chirps]
+            out = spread(t, knots, y0, y1, m0, m1, g0, g1, wf.start_hz, wf.slope, wf.fs, n, kernel, matrix,
+                         pri=wf.pri_s, t_all=(t_all[0], t_all[-1]))
+            yield t, (grid_to_iq(out, n, kernel) if weights is None else out)
+        return
+    evaluate = _PersistentPaths(paths) if paths.persistent else _FrameLocalPaths(paths)
     for s in range(0, t_all.size, chunk_chirps):
         t = t_all[s:s + chunk_chirps]
-        if use_grid:
-            iq = gridded_tone_sum(t, knots, coef, g0, g1, wf.start_hz, wf.slope, wf.fs, wf.samples_per_chirp,
-                                  oversample)
-        else:
-            delays, gains, rates = evaluate(t)
-            _check_nyquist(delays, gains, rates, wf, paths.link, reported)
-            iq = tone_sum(delays, gains, wf)
-        yield t, iq.astype(np.complex64)
+        delays, gains, rates = evaluate(t)
+        _check_nyquist(delays, gains, rates, wf, paths.link, reported)
+        iq = tone_sum(delays, gains, wf)
+        yield t, (iq if weights is None else iq @ weights)
 
 
 def synthesise(paths: PathSet, wf: Waveform, t_start: float | None = None, t_stop: float | None = None,

@@ -1,22 +1,35 @@
-"""Many-path FMCW synthesis: delay gridding with a Taylor correction, slow-time phase recurrences.
+"""Many-path FMCW synthesis: paths spread onto an oversampled beat-frequency grid (a non-uniform FFT).
 
-The exact synthesiser (`synthesis.tone_sum`) costs paths x chirps x samples, which is fine for the seed's
-21 points but not for ~10^4 mesh facets. Here the beat signal of chirp m,
+The exact synthesiser (`synthesis.tone_sum`) costs paths x chirps x samples, fine for the seed's 21 points but
+not for ~10^4 mesh facets. Write sample n of a chirp as n = n' + N/2 (n' = -N/2 .. N/2 - 1, N = samples):
 
-    s_m(n) = sum_p c_p exp(j 2 pi gamma tau_p n / fs),    c_p = a_p exp(j 2 pi f_s tau_p),
+    s(n) = sum_p c_p exp(j 2 pi n' X_p / M),   c_p = a_p exp(j 2 pi f_c tau_p),   X_p = gamma tau_p M / fs,
 
-is evaluated by splitting each delay onto a grid, tau_p = q_p Delta + delta_p with |delta_p| <= Delta/2 and
-Delta = fs / (gamma L), so that the grid factor is exp(j 2 pi q n / L): a length-L inverse DFT. The
-remainder exp(j u_p n), u_p = 2 pi gamma delta_p / fs, is expanded to order K:
+with f_c = f_s + gamma (N/2) / fs the instantaneous frequency at sample N/2 (centring the fast-time frequencies
+halves the largest |n'|). This is a type-1 non-uniform DFT: path p sits at the non-integer cell X_p of a grid
+of M = oversample x N cells per beat-frequency period (the grid wraps modulo M exactly as a real ADC aliases
+beat frequencies beyond fs). Spreading every path onto the cells l near it with a smooth kernel phi
+(`synthesis_kernel`), b[l] = sum_p c_p phi(X_p - l), gives by Poisson summation
 
-    s_m(n) = sum_k n^k IDFT_L[ sum_{p in q} c_p (j u_p)^k / k! ](n),   n < N.
+    sum_l b[l] exp(j 2 pi n' l / M) = sum_p c_p exp(j 2 pi n' X_p / M) phihat(n'/M) (1 + e_p(n')),
 
-With L = oversample * N, |u_p n| <= pi / oversample, so the truncation error is below
-(pi/oversample)^(K+1) / (K+1)! of each path's amplitude (8x, K = 3: 1e-3, i.e. -60 dB). The grid index is
-taken modulo L, which is exactly the beat-frequency aliasing of a real ADC. Per path and chirp the work
-is O(K): the slow-time phase 2 pi f_s tau(t) is a cubic in the chirp index inside one frame interval
-(the delay spline is a cubic there), so its phasor is advanced by forward differences (three complex
-multiplications, no transcendental function), reseeded in float64 at every frame interval.
+so s(n) = [M ifft(b)](n') / phihat(n'/M) (`grid_to_iq`), and any linear map of a chirp's samples, such as the
+DSP's range FFT of the used bins and its coherent range sum, is one matrix applied to b (`projection_matrix`),
+which the kernel applies itself over the cells the paths touch (`spread(..., matrix)`). |e_p| <=
+`SpreadKernel.error_bound` per path and sample: 1.8e-6 (-115 dB) at the defaults, against 1e-3 for the Taylor
+grid this replaces.
+
+Cost. Each path keeps a reference cell f for a few chirps (re-chosen on a fixed chirp schedule before its delay
+can have drifted by `drift` cells) and its weights on cells f - w/2 .. f + w/2 + 1 are polynomials of degree 5
+in its offset, so a path only adds c_p y_p^d (d = 0..5) to the moments of its reference cell; paths are
+counting-sorted by cell once per frame interval, the ~7,000 facets of a body share a few tens of cells, and a
+cell's moments go through the w + 2 weight polynomials once per chirp. Per path and chirp that is ~35 flops
+(phasor, delay, six complex moments), in loops over structure-of-arrays state that vectorise.
+
+Slow time: inside one frame interval a path's delay is a cubic in time (the Hermite spline of the frames'
+delays and delay rates, or a rate extrapolation for frame-local paths, `synthesis.grid_pieces`), so its phasor
+exp(j 2 pi f_c tau) is advanced from chirp to chirp by forward differences (three complex multiplications), seeded
+in float64 at the first chirp of every frame interval (and chunk) from the phase in cycles reduced modulo 1.
 """
 from __future__ import annotations
 
@@ -26,31 +39,76 @@ import numba
 import numpy as np
 import scipy.fft
 
-BLOCK = 256  # paths per cache block in the accumulation kernel
-ORDER = 3  # Taylor order of the sub-grid correction (see module docstring for the error bound)
+from processing.synthesis_kernel import DEGREE, OVERSAMPLE, SpreadKernel, spread_kernel
+
+__all__ = ["OVERSAMPLE", "SpreadKernel", "fold", "grid_cells", "grid_to_iq", "gridded_tone_sum", "prepare_frames",
+           "project_rows", "projection_matrix", "spread", "spread_kernel"]
+
+BLOCK = 256  # paths processed together (state and moments stay in L1/L2)
+# fast-math without "nnan"/"ninf": reassociation and contraction let the loops vectorise, while NaN tests
+# (absent frames' delay rates) keep working
+FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+_TWO_OVER_PI = 2.0 / math.pi
+_PIO2_HI = 1.57079632673412561417e+00  # pi/2 in two parts (fdlibm): k * _PIO2_HI is exact for |k| < 2^20
+_PIO2_LO = 6.07710050650619224932e-11
 
 
-@numba.njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
-def _accumulate(t, knots, coef, g0, g1, start_hz, u_scale, delta, n_grid, out):  # pragma: no cover - jitted
-    """Add every path's chirp phasors onto the delay grid.
+def grid_cells(n_samples: int, kernel: SpreadKernel) -> int:
+    """Grid length M = oversample x N."""
+    return kernel.oversample * n_samples
 
-    t: chirp start times [C] (s), PRI-spaced. knots: interval edges [I+1] (s). coef: delay cubic per
-    interval [4, I, P] (s, in powers of s - knots[i], highest first). g0/g1: complex gain at the
-    start/end of each interval [I, P] (linear in between). out: [C, n_grid, 2 (ORDER+1)] float64
-    (re, im of each order adjacent, so one grid hit touches one cache line), zeroed by the caller.
-    Chirps of one interval are written only by the thread that owns that interval (no races).
-    Real arithmetic by hand: numba's complex multiply is ~2x slower (measured).
+
+def centre_sample(n_samples: int) -> int:
+    """Sample N // 2 whose instantaneous frequency carries the paths' phases (module docstring)."""
+    return n_samples // 2
+
+
+@numba.njit(inline="always", fastmath=FASTMATH)
+def _sincos(x):  # pragma: no cover - jitted
+    """(sin x, cos x) to ~1e-16 for |x| < 1e6: Cody-Waite reduction by pi/2, fdlibm's kernels, branch-free
+    quadrant selection (so that loops calling it vectorise)."""
+    k = math.floor(x * _TWO_OVER_PI + 0.5)
+    r = (x - k * _PIO2_HI) - k * _PIO2_LO
+    z = r * r
+    s = r + r * z * (-1.66666666666666324348e-01 + z * (8.33333333332248946124e-03 + z * (
+        -1.98412698298579493134e-04 + z * (2.75573137070700676789e-06 + z * (
+            -2.50507602534068634195e-08 + z * 1.58969099521155010221e-10)))))
+    c = 1.0 - 0.5 * z + z * z * (4.16666666666666019037e-02 + z * (-1.38888888888741095749e-03 + z * (
+        2.48015872894767294178e-05 + z * (-2.75573143513906633035e-07 + z * (
+            2.08757232129817482790e-09 + z * -1.13596475577881948265e-11)))))
+    q = int(k) & 3
+    sn = c if (q & 1) == 1 else s
+    cs = s if (q & 1) == 1 else c
+    return (-sn if q >= 2 else sn), (-cs if (q == 1 or q == 2) else cs)
+
+
+@numba.njit(parallel=True, cache=True, fastmath=FASTMATH, error_model="numpy")
+def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1, f_ref, x_scale, n_grid, kc,
+            y_a, y_b, drift, out, pm, proj):  # pragma: no cover
+    """Add every path's chirp phasors, spread by the kernel, onto the grid rows out[C, 2 L] (re, im adjacent).
+
+    t: chirp start times [C] (s) of this chunk, chirps first_index.. of the recording t_first + k pri, k up to
+    (t_last - t_first) / pri. Everything but the phasors' float64 seeds depends only on the recording, not
+    on the chunk (reference cells are re-chosen on a global chirp schedule), so chunking changes the
+    output by float rounding only. knots: interval edges [I+1] (s). y0, y1, m0, m1: delay (s) and
+    delay rate at the start and end of each interval [I, P] (cubic Hermite). g0, g1: complex gains at the
+    start/end of each interval [I, P] (linear in between); NaN rates count as 0. f_ref: carrier of the phases (Hz). x_scale: grid
+    cells per second of delay. kc: fitted weights [w + 2, 8]. y_a, y_b: offset -> polynomial variable.
+    pm: [L, 2K] projection matrix (re, im adjacent) or [L, 0]: then proj[C, 2K] receives each finished row
+    times pm over the cells this interval touched (K = 0: no projection).
+    Chirps of one interval are written only by the thread that owns that interval (no races). Real
+    arithmetic by hand (numba's complex multiply is slower) and structure-of-arrays state, so that the
+    per-chirp loops over paths vectorise.
     """
+    n_cells = kc.shape[0]
     c_n = t.shape[0]
     n_int = knots.shape[0] - 1
-    n_paths = coef.shape[2]
-    pri = t[1] - t[0] if c_n > 1 else 1.0
+    n_paths = y0.shape[1]
     first = min(max(np.searchsorted(knots, t[0], side="right") - 1, 0), n_int - 1)
     last = min(max(np.searchsorted(knots, t[c_n - 1], side="right") - 1, 0), n_int - 1)
-    w = 2.0 * math.pi * start_hz
     two_pi = 2.0 * math.pi
-    inv_delta = 1.0 / delta
-    mask = n_grid - 1
+    fm = float(n_grid)
     for i in numba.prange(first, last + 1):
         # chirps whose start lies in [knots[i], knots[i+1]) (the end intervals also take what lies beyond)
         lo = np.searchsorted(t, knots[i], side="left") if i > first else 0
@@ -58,102 +116,326 @@ def _accumulate(t, knots, coef, g0, g1, start_hz, u_scale, delta, n_grid, out): 
         if hi <= lo:
             continue
         h = knots[i + 1] - knots[i]
-        s0 = t[lo] - knots[i]
-        tt = pri
-        # per-path state, then blocks of paths: chirp-outer / path-inner within a block keeps the block's
-        # state in cache and its writes in a few lines of one grid row (neighbouring facets have similar
-        # delays); path-outer order strided rows 64 kB apart, all-paths-inner streamed MBs of state (measured)
-        act = np.empty(n_paths, np.int64)
-        n_act = 0
+        inv_h = 1.0 / h
+        s_lo = t[lo] - knots[i]
+        # time span of the whole interval's chirps (the end intervals also take chirps beyond the knots)
+        s_a = min(-pri, t_first - knots[i]) if i == 0 else -pri
+        s_b = max(h, t_last - knots[i]) if i == n_int - 1 else h
+        s_max = max(-s_a, s_b)
+        anchor = int(math.floor((knots[i] - t_first) / pri))  # global chirp index the reference schedule starts at
+        # active paths, counting-sorted by their cell at the knot: paths sharing a cell become runs
+        key = np.empty(n_paths, np.int64)
         for p in range(n_paths):
-            if g0[i, p] != 0 or g1[i, p] != 0:
-                act[n_act] = p
-                n_act += 1
-        st = np.empty((n_act, 14))  # e, e1, e2, e3 (re, im), g (re, im), dg (re, im), 2 spare
-        cf = np.empty((n_act, 4))
-        for j in range(n_act):
-            p = act[j]
-            a3, a2, a1, a0 = coef[0, i, p], coef[1, i, p], coef[2, i, p], coef[3, i, p]
-            cf[j, 0], cf[j, 1], cf[j, 2], cf[j, 3] = a3, a2, a1, a0
-            # phase and its forward differences at step PRI from the cubic's coefficients (no cancellation)
-            ph0 = w * (((a3 * s0 + a2) * s0 + a1) * s0 + a0)
-            ph0 -= two_pi * math.floor(ph0 / two_pi)
-            d1 = w * (a3 * (3 * s0 * s0 * tt + 3 * s0 * tt * tt + tt * tt * tt) + a2 * (2 * s0 * tt + tt * tt)
-                      + a1 * tt)
-            d2 = w * (a3 * (6 * s0 * tt * tt + 6 * tt * tt * tt) + 2 * a2 * tt * tt)
-            d3 = w * 6 * a3 * tt * tt * tt
-            st[j, 0], st[j, 1] = math.cos(ph0), math.sin(ph0)
-            st[j, 2], st[j, 3] = math.cos(d1), math.sin(d1)
-            st[j, 4], st[j, 5] = math.cos(d2), math.sin(d2)
-            st[j, 6], st[j, 7] = math.cos(d3), math.sin(d3)
-            ga, gb = g0[i, p], g1[i, p]
-            st[j, 8], st[j, 9] = ga.real, ga.imag
-            st[j, 10], st[j, 11] = (gb.real - ga.real) / h, (gb.imag - ga.imag) / h
+            xk = x_scale * y0[i, p]
+            c = int(xk - fm * math.floor(xk / fm))
+            key[p] = n_grid if (g0[i, p] == 0 and g1[i, p] == 0) else min(max(c, 0), n_grid - 1)
+        count = np.zeros(n_grid + 2, np.int64)
+        for p in range(n_paths):
+            count[key[p] + 1] += 1
+        n_act = n_paths - count[n_grid + 1]
+        if n_act == 0:
+            continue
+        for c in range(n_grid):
+            count[c + 1] += count[c]
+        act = np.empty(n_paths, np.int64)
+        for p in range(n_paths):
+            act[count[key[p]]] = p
+            count[key[p]] += 1
+        b = min(BLOCK, n_act)
+        cf = np.empty((4, b))  # delay cubic in powers of the time since the knot (s, then cells)
+        gn = np.empty((4, b))  # gain at the knot and its slope (re, im)
+        # phasor e and its forward-difference steps e1, e2, e3 (re, im); one array each: the per-chirp loops
+        # vectorise better than over the rows of one 2-D array (measured)
+        er, ei, e1r, e1i = np.empty(b), np.empty(b), np.empty(b), np.empty(b)
+        e2r, e2i, e3r, e3i = np.empty(b), np.empty(b), np.empty(b), np.empty(b)
+        cr, ci, yy = np.empty(b), np.empty(b), np.empty(b)  # this chirp: c = gain x phasor, polynomial variable
+        ref = np.empty(b)
+        cell = np.empty(b, np.int64)
+        starts = np.empty(b + 1, np.int64)
+        e_lo, e_hi = n_grid, 0  # extended cells touched by this interval: [e_lo, e_hi + n_cells)
         for j0 in range(0, n_act, BLOCK):
+            nb = min(BLOCK, n_act - j0)
+            for jj in range(nb):
+                p = act[j0 + jj]
+                ya, ma, mb = y0[i, p], m0[i, p], m1[i, p]
+                ma = ma if math.isfinite(ma) else 0.0  # absent frames' NaN rates read as 0 (np.nan_to_num)
+                mb = mb if math.isfinite(mb) else 0.0
+                slope = (y1[i, p] - ya) * inv_h
+                tq = (ma + mb - 2.0 * slope) * inv_h
+                cf[0, jj], cf[1, jj], cf[2, jj], cf[3, jj] = tq * inv_h, (slope - ma) * inv_h - tq, ma, ya
+                ga, gb = g0[i, p], g1[i, p]
+                gn[0, jj], gn[1, jj] = ga.real, ga.imag
+                gn[2, jj], gn[3, jj] = (gb.real - ga.real) * inv_h, (gb.imag - ga.imag) * inv_h
+            for jj in range(nb):
+                a3, a2, a1, a0 = cf[0, jj], cf[1, jj], cf[2, jj], cf[3, jj]
+                # phase and its forward differences at step PRI, in cycles (reduced modulo 1 in float64)
+                p0 = f_ref * (((a3 * s_lo + a2) * s_lo + a1) * s_lo + a0)
+                p0 -= np.floor(p0)
+                d1 = f_ref * (a3 * (3 * s_lo * s_lo * pri + 3 * s_lo * pri * pri + pri * pri * pri)
+                              + a2 * (2 * s_lo * pri + pri * pri) + a1 * pri)
+                d1 -= np.floor(d1)
+                d2 = f_ref * (a3 * (6 * s_lo * pri * pri + 6 * pri * pri * pri) + 2 * a2 * pri * pri)
+                d3 = f_ref * 6 * a3 * pri * pri * pri
+                ei[jj], er[jj] = _sincos(two_pi * p0)
+                e1i[jj], e1r[jj] = _sincos(two_pi * d1)
+                e2i[jj], e2r[jj] = _sincos(two_pi * d2)
+                e3i[jj], e3r[jj] = _sincos(two_pi * d3)
+            rate = 0.0  # largest |d tau / dt| over the chirps of this interval
+            for jj in range(nb):
+                v = (abs(3 * cf[0, jj]) * s_max + abs(2 * cf[1, jj])) * s_max + abs(cf[2, jj])
+                if v > rate:
+                    rate = v
+            for k in range(4):
+                for jj in range(nb):
+                    cf[k, jj] *= x_scale
+            # chirps per reference cell: the delay may drift by at most `drift` cells meanwhile
+            step = rate * x_scale * pri
+            n_sub = 1 + int(min(drift / step, 1e9)) if step > 0 else 1 << 30
+            ma_ = lo
+            while ma_ < hi:
+                k_sub = (first_index + ma_ - anchor) // n_sub
+                g_ref = anchor + k_sub * n_sub  # global index of this sub-interval's reference chirp
+                mb_ = min(hi, g_ref + n_sub - first_index)
+                s = t_first + g_ref * pri - knots[i]
+                for jj in range(nb):
+                    ref[jj] = np.floor(((cf[0, jj] * s + cf[1, jj]) * s + cf[2, jj]) * s + cf[3, jj])
+                for jj in range(nb):
+                    f = ref[jj]
+                    cell[jj] = int(f - fm * np.floor(f / fm))
+                for jj in range(nb):
+                    e_lo = min(e_lo, cell[jj])
+                    e_hi = max(e_hi, cell[jj])
+                n_run = 0
+                starts[0] = 0
+                for jj in range(1, nb):
+                    if cell[jj] != cell[jj - 1]:
+                        n_run += 1
+                        starts[n_run] = jj
+                n_run += 1
+                starts[n_run] = nb
+                for m in range(ma_, mb_):
+                    s = t[m] - knots[i]
+                    row = out[m]
+                    for jj in range(nb):
+                        x = ((cf[0, jj] * s + cf[1, jj]) * s + cf[2, jj]) * s + cf[3, jj]
+                        yy[jj] = (x - ref[jj]) * y_a - y_b
+                    for jj in range(nb):
+                        xr, xi = gn[0, jj] + gn[2, jj] * s, gn[1, jj] + gn[3, jj] * s
+                        a, bb = er[jj], ei[jj]
+                        cr[jj] = xr * a - xi * bb
+                        ci[jj] = xr * bb + xi * a
+                        c1, s1 = e1r[jj], e1i[jj]
+                        er[jj], ei[jj] = a * c1 - bb * s1, a * s1 + bb * c1
+                        c2, s2 = e2r[jj], e2i[jj]
+                        e1r[jj], e1i[jj] = c1 * c2 - s1 * s2, c1 * s2 + s1 * c2
+                        c3, s3 = e3r[jj], e3i[jj]
+                        e2r[jj], e2i[jj] = c2 * c3 - s2 * s3, c2 * s3 + s2 * c3
+                    for r in range(n_run):
+                        r0 = r1 = r2 = r3 = r4 = r5 = 0.0
+                        i0 = i1 = i2 = i3 = i4 = i5 = 0.0
+                        for jj in range(starts[r], starts[r + 1]):
+                            y = yy[jj]
+                            vr, vi = cr[jj], ci[jj]
+                            r0 += vr
+                            i0 += vi
+                            vr *= y
+                            vi *= y
+                            r1 += vr
+                            i1 += vi
+                            vr *= y
+                            vi *= y
+                            r2 += vr
+                            i2 += vi
+                            vr *= y
+                            vi *= y
+                            r3 += vr
+                            i3 += vi
+                            vr *= y
+                            vi *= y
+                            r4 += vr
+                            i4 += vi
+                            vr *= y
+                            vi *= y
+                            r5 += vr
+                            i5 += vi
+                        base = 2 * cell[starts[r]]
+                        for q in range(n_cells):
+                            k0, k1, k2, k3, k4, k5 = kc[q, 0], kc[q, 1], kc[q, 2], kc[q, 3], kc[q, 4], kc[q, 5]
+                            row[base + 2 * q] += k0 * r0 + k1 * r1 + k2 * r2 + k3 * r3 + k4 * r4 + k5 * r5
+                            row[base + 2 * q + 1] += k0 * i0 + k1 * i1 + k2 * i2 + k3 * i3 + k4 * i4 + k5 * i5
+                ma_ = mb_
+        n_out = pm.shape[1]
+        if n_out:
+            acc = np.empty(n_out)
             for m in range(lo, hi):
-                s = t[m] - knots[i]
                 row = out[m]
-                for j in range(j0, min(j0 + BLOCK, n_act)):
-                    tau = ((cf[j, 0] * s + cf[j, 1]) * s + cf[j, 2]) * s + cf[j, 3]
-                    er, ei = st[j, 0], st[j, 1]
-                    xr, xi = st[j, 8] + st[j, 10] * s, st[j, 9] + st[j, 11] * s
-                    cr, ci = xr * er - xi * ei, xr * ei + xi * er
-                    q = math.floor(tau * inv_delta + 0.5)
-                    u = u_scale * (tau - q * delta)
-                    idx = int(q) & mask  # q mod L (L a power of two): beat-frequency aliasing
-                    row[idx, 0] += cr
-                    row[idx, 1] += ci
-                    cr, ci = -ci * u, cr * u  # times j u
-                    row[idx, 2] += cr
-                    row[idx, 3] += ci
-                    f = 0.5 * u
-                    cr, ci = -ci * f, cr * f
-                    row[idx, 4] += cr
-                    row[idx, 5] += ci
-                    f = u / 3.0
-                    cr, ci = -ci * f, cr * f
-                    row[idx, 6] += cr
-                    row[idx, 7] += ci
-                    e1r, e1i, e2r, e2i = st[j, 2], st[j, 3], st[j, 4], st[j, 5]
-                    st[j, 0], st[j, 1] = er * e1r - ei * e1i, er * e1i + ei * e1r
-                    st[j, 2], st[j, 3] = e1r * e2r - e1i * e2i, e1r * e2i + e1i * e2r
-                    e3r, e3i = st[j, 6], st[j, 7]
-                    st[j, 4], st[j, 5] = e2r * e3r - e2i * e3i, e2r * e3i + e2i * e3r
+                acc[:] = 0.0
+                for e in range(e_lo, e_hi + n_cells):
+                    br, bi = row[2 * e], row[2 * e + 1]
+                    for k in range(0, n_out, 2):
+                        acc[k] += br * pm[e, k] - bi * pm[e, k + 1]
+                        acc[k + 1] += br * pm[e, k + 1] + bi * pm[e, k]
+                proj[m, :] = acc
     return out
 
 
-def grid_size(samples_per_chirp: int, oversample: int) -> int:
-    """Delay-grid length L: the power of two >= oversample * N (fast inverse FFT, modulo by bit mask)."""
-    return 1 << int(math.ceil(math.log2(oversample * samples_per_chirp)))
+@numba.njit(parallel=True, cache=True)
+def _prepare_frames(times, out, rates, gains, gaps):  # pragma: no cover - jitted
+    """Fill the NaN gaps of `out` [K, P] (a copy of the delays) in place; largest |rate| (NaN as 0) and largest
+    delay of the present paths."""
+    n, n_paths = out.shape
+    rate_max = np.zeros(n)
+    delay_max = np.zeros(n)
+    for k in numba.prange(n):
+        rm, dm = 0.0, 0.0
+        for p in range(n_paths):
+            if gains[k, p].real != 0 or gains[k, p].imag != 0:
+                v = rates[k, p] if rates.shape[0] else 0.0
+                v = v if math.isfinite(v) else 0.0
+                rm = max(rm, abs(v))
+                dm = max(dm, out[k, p])
+        rate_max[k], delay_max[k] = rm, dm
+    # gaps filled row by row (a column walk would touch a new cache line per frame): next present frame of
+    # every gap column from a backward sweep, then interpolation from the last present one in a forward sweep
+    n_gaps = gaps.size
+    nxt = np.empty((n, n_gaps), np.int32)
+    follow = np.full(n_gaps, n, np.int32)
+    for k in range(n - 1, -1, -1):
+        for gi in range(n_gaps):
+            if math.isfinite(out[k, gaps[gi]]):
+                follow[gi] = k
+            nxt[k, gi] = follow[gi]
+    prev = np.full(n_gaps, -1, np.int64)
+    for k in range(n):
+        for gi in range(n_gaps):
+            p = gaps[gi]
+            if math.isfinite(out[k, p]):
+                prev[gi] = k
+                continue
+            a, b = prev[gi], nxt[k, gi]
+            if a < 0 and b >= n:
+                out[k, p] = 0.0
+            elif a < 0:
+                out[k, p] = out[b, p]
+            elif b >= n:
+                out[k, p] = out[a, p]
+            else:
+                slope = (out[b, p] - out[a, p]) / (times[b] - times[a])
+                out[k, p] = slope * (times[k] - times[a]) + out[a, p]
+    return rate_max.max() if n else 0.0, delay_max.max() if n else 0.0
 
 
-def gridded_tone_sum(t: np.ndarray, knots: np.ndarray, coef: np.ndarray, g0: np.ndarray, g1: np.ndarray,
-                     start_hz: float, slope: float, fs: float, n_samples: int, oversample: int = 8,
-                     ) -> np.ndarray:
-    """Beat signal [C, N] (complex128) of many paths with piecewise-cubic delays.
+def prepare_frames(times: np.ndarray, delays: np.ndarray, rates: np.ndarray | None, gains: np.ndarray):
+    """(delays [K, P] with NaN gaps filled as `synthesis._fill_absent` fills them (np.interp's arithmetic,
+    bitwise the same; the input itself if it has no gap), largest |delay rate| (NaN as 0) and largest delay [s]
+    of the present paths (gain != 0))."""
+    gaps = np.flatnonzero(~np.isfinite(delays).all(axis=0))
+    out = delays.copy() if gaps.size else delays
+    rate_max, delay_max = _prepare_frames(times, out, np.zeros((0, 0)) if rates is None else rates, gains, gaps)
+    return out, float(rate_max), float(delay_max)
+
+
+def spread(t: np.ndarray, knots: np.ndarray, y0: np.ndarray, y1: np.ndarray, m0: np.ndarray, m1: np.ndarray,
+           g0: np.ndarray, g1: np.ndarray, start_hz: float, slope: float, fs: float, n_samples: int,
+           kernel: SpreadKernel, matrix: np.ndarray | None = None, pri: float | None = None,
+           t_all: tuple[float, float] | None = None) -> np.ndarray:
+    """Spread grid [C, M + w + 1] (complex128, cell e <-> grid cell (e - w/2) mod M) of many paths, or with
+    `matrix` [M + w + 1, K] (`projection_matrix`) the projection grid @ matrix [C, K], formed in the kernel
+    over the cells the paths touch.
 
     Args:
-        t: chirp start times [C] (s), uniformly spaced by the PRI.
-        knots: frame times bounding the polynomial pieces [I+1] (s); t must lie within them.
-        coef: delay cubic per piece [4, I, P] in powers of (t - knots[i]) (s), highest power first
-            (scipy PPoly layout).
+        t: chirp start times [C] (s), uniformly spaced by the PRI, within or at the ends of the knots.
+        knots: frame times bounding the delay pieces [I+1] (s).
+        y0, y1, m0, m1: delays [s] and delay rates [s/s] at the start and end of each piece [I, P]: the delay
+            is their cubic Hermite interpolant inside the piece.
         g0, g1: complex gains at the start and end of each piece [I, P]; linear in between.
         start_hz: chirp start frequency f_s (Hz). slope: chirp slope gamma (Hz/s). fs: ADC rate (Hz).
-        n_samples: samples per chirp N. oversample: grid refinement L / N (error bound in module doc).
+        n_samples: samples per chirp N. kernel: `spread_kernel()`.
+        pri: chirp interval (s); default t[1] - t[0]. t_all: (first, last) chirp start time of the whole
+            recording when t is one chunk of it (default t's own), so that chunks give the same result.
     """
-    n_grid = grid_size(n_samples, oversample)
-    delta = fs / (slope * n_grid)
-    u_scale = 2 * np.pi * slope / fs
-    acc = np.zeros((t.size, n_grid, 2 * (ORDER + 1)), dtype=np.float64)
-    _accumulate(np.ascontiguousarray(t, np.float64), np.ascontiguousarray(knots, np.float64),
-                np.ascontiguousarray(coef, np.float64), np.ascontiguousarray(g0, np.complex128),
-                np.ascontiguousarray(g1, np.complex128), float(start_hz), float(u_scale), float(delta),
-                n_grid, acc)
-    # sum_q A[q] exp(+j 2 pi q n / L) = L * ifft(A)[n]; FFT threads follow numba's (NUMBA_NUM_THREADS)
-    spec = scipy.fft.ifft(acc.view(np.complex128), axis=1, workers=numba.get_num_threads())[:, :n_samples]
-    spec *= n_grid
-    n = np.arange(n_samples, dtype=np.float64)
-    out = spec[:, :, 0]
-    for k in range(1, ORDER + 1):
-        out = out + n ** k * spec[:, :, k]
+    if kernel.weights.shape[1] != DEGREE + 1:
+        raise ValueError(f"the spreading loop is written for degree-{DEGREE} weights")
+    m = grid_cells(n_samples, kernel)
+    f_ref = start_hz + slope * centre_sample(n_samples) / fs
+    out = np.zeros((t.size, 2 * (m + kernel.n_cells - 1)))
+    pm = np.zeros((out.shape[1] // 2, 0)) if matrix is None else \
+        np.ascontiguousarray(np.asarray(matrix, np.complex128)).view(np.float64)
+    if pm.shape[0] != out.shape[1] // 2:
+        raise ValueError(f"projection matrix must have {out.shape[1] // 2} rows, got {pm.shape[0]}")
+    proj = np.zeros((t.size, pm.shape[1]))
+    if t.size and y0.size:
+        a = 2.0 / (1 + 2 * kernel.drift)
+        pri = float(t[1] - t[0] if pri is None else pri)
+        t_first, t_last = (float(t[0]), float(t[-1])) if t_all is None else map(float, t_all)
+        first_index = int(round((t[0] - t_first) / pri))
+        _spread(np.ascontiguousarray(t, np.float64), pri, t_first, t_last, first_index,
+                np.ascontiguousarray(knots, np.float64), y0, y1, m0, m1, g0, g1, float(f_ref), float(slope * m / fs), m,
+                np.ascontiguousarray(kernel.weights), a, a / 2, float(kernel.drift), out, pm, proj)
+    return out.view(np.complex128) if matrix is None else proj.view(np.complex128)
+
+
+def projection_matrix(weights: np.ndarray, n_samples: int, kernel: SpreadKernel) -> np.ndarray:
+    """[M + w + 1, K] matrix taking a spread grid to `iq @ weights` (weights [N, K] over fast time)."""
+    m = grid_cells(n_samples, kernel)
+    n_prime = np.arange(n_samples) - centre_sample(n_samples)
+    cells = np.arange(m + kernel.n_cells - 1) - kernel.width // 2
+    roots = np.exp(2j * np.pi * np.arange(m) / m)  # exp(j 2 pi l n' / M) depends on l n' mod M only
+    dft = roots[np.outer(cells, n_prime) % m] / kernel.phihat(n_prime / m)
+    return dft @ np.asarray(weights, dtype=np.complex128)
+
+
+def fold(grid: np.ndarray, kernel: SpreadKernel) -> np.ndarray:
+    """Spread grid [C, M + w + 1] -> periodic grid [C, M] (cells 0..M-1)."""
+    half = kernel.width // 2
+    m = grid.shape[1] - kernel.n_cells + 1
+    g = grid[:, half:half + m].copy()
+    g[:, m - half:] += grid[:, :half]
+    g[:, :grid.shape[1] - half - m] += grid[:, half + m:]
+    return g
+
+
+def grid_to_iq(grid: np.ndarray, n_samples: int, kernel: SpreadKernel) -> np.ndarray:
+    """Beat signal [C, N] (complex128) of a spread grid: M ifft of the folded grid over phihat."""
+    g = fold(grid, kernel)
+    m = g.shape[1]
+    n_prime = np.arange(n_samples) - centre_sample(n_samples)
+    spec = scipy.fft.ifft(g, axis=1, workers=numba.get_num_threads())  # FFT threads follow numba's
+    return spec[:, n_prime % m] * (m / kernel.phihat(n_prime / m))
+
+
+def gridded_tone_sum(t, knots, y0, y1, m0, m1, g0, g1, start_hz: float, slope: float, fs: float, n_samples: int,
+                     kernel: SpreadKernel | None = None) -> np.ndarray:
+    """Beat signal [C, N] (complex128) of many paths (arguments as `spread`)."""
+    kernel = spread_kernel() if kernel is None else kernel
+    grid = spread(t, knots, y0, y1, m0, m1, g0, g1, start_hz, slope, fs, n_samples, kernel)
+    return grid_to_iq(grid, n_samples, kernel)
+
+
+@numba.njit(parallel=True, cache=True, fastmath=FASTMATH)
+def _rows_times(x, wr, wi, out):  # pragma: no cover - jitted
+    """out[C, 2K] (re, im adjacent) = x[C, 2N] (re, im adjacent; float32 or float64) @ (wr + j wi) [N, K]."""
+    n_k = wr.shape[1]
+    for c in numba.prange(x.shape[0]):
+        acc_r = np.zeros(n_k)
+        acc_i = np.zeros(n_k)
+        for n in range(wr.shape[0]):
+            xr, xi = float(x[c, 2 * n]), float(x[c, 2 * n + 1])
+            for k in range(n_k):
+                acc_r[k] += xr * wr[n, k] - xi * wi[n, k]
+                acc_i[k] += xr * wi[n, k] + xi * wr[n, k]
+        for k in range(n_k):
+            out[c, 2 * k] = acc_r[k]
+            out[c, 2 * k + 1] = acc_i[k]
+
+
+def project_rows(x: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """x [C, N] @ weights [N, K] (complex128 result) accumulated in float64 without BLAS (whose threads fight
+    numba's for the cores)."""
+    x = np.ascontiguousarray(x)
+    out = np.zeros((x.shape[0], weights.shape[1]), np.complex128)
+    if x.size:
+        real = x.view(np.float32 if x.dtype == np.complex64 else np.float64)
+        w = np.asarray(weights, np.complex128)
+        _rows_times(real, np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag), out.view(np.float64))
     return out

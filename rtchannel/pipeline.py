@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from processing.dsp import Signature, signatures
+from processing.dsp import Signature, signatures, signatures_from_projection
 from processing.dsp_config import check_recording
 from processing.pathset import PathSet
 from processing.synthesis import iter_synthesis
@@ -84,42 +84,55 @@ def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", *
 
 def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool = False,
                   progress=None, timing: dict | None = None, synthesis: str = "auto",
-                  oversample: int = 8, iq_transform=None, noise_seed: int = 0) -> dict[str, LinkResult]:
-    """Synthesise raw IQ and compute signatures for every link's path set.
+                  oversample: int | None = None, iq_transform=None, noise_seed: int = 0) -> dict[str, LinkResult]:
+    """Synthesise and compute signatures for every link's path set.
 
     With `radar.receiver` set, the IQ is what the ADC records (`processing.receiver.receive`): scaled to
     sqrt(W) by the transmit power and chain gain, plus the receiver's thermal noise (and leakage, if
     configured), seeded by (`noise_seed`, link index) and keyed by chirp index, so chunking never
     changes it. Without a receiver the IQ stays in units of the transmit power (noiseless).
+    Raw IQ is formed only when it is needed (`keep_iq`, `iq_transform`): otherwise the DSP's fast-time
+    projection (range profiles of the used bins, coherent range sum) is synthesised straight from the paths
+    with the same noise projected onto it (`processing.synthesis_projection`), which gives the same
+    signatures up to float rounding (tests/test_synthesis_projection.py).
     `progress` is an optional callable receiving the number of chirps done after each chunk;
     `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.iter_synthesis`);
     `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (signal-layer augmentation),
     and the kept IQ is the transformed one.
     """
     from processing.receiver import receive
+    from processing.synthesis_projection import synthesise_projection
 
     timing = {} if timing is None else timing
     out = {}
     wf, dsp = radar.waveform, radar.dsp
     index = {link.name: i for i, link in enumerate(radar.links)}
     for name, ps in paths.items():
+        seed = (int(noise_seed), index.get(name, 0))
         t0 = time.perf_counter()
-        t_parts, iq_parts = [], []
-        done = 0
-        for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
-            if radar.receiver is not None:
-                iq = receive(iq, radar.receiver, wf, seed=(int(noise_seed), index.get(name, 0)), first_chirp=done)
-            done += t.size
-            t_parts.append(t)
-            iq_parts.append(iq)
-            if progress is not None:
-                progress(t.size)
-        chirp_t = np.concatenate(t_parts) if t_parts else np.zeros(0)
-        iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
-        if iq_transform is not None:
-            iq = iq_transform(name, iq)
-        t1 = time.perf_counter()
-        sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0)
+        if not keep_iq and iq_transform is None:
+            chirp_t, proj = synthesise_projection(ps, wf, dsp, receiver=radar.receiver, seed=seed, method=synthesis,
+                                                  oversample=oversample, progress=progress)
+            t1 = time.perf_counter()
+            sig = signatures_from_projection(proj, dsp)
+            iq = None
+        else:
+            t_parts, iq_parts = [], []
+            done = 0
+            for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
+                if radar.receiver is not None:
+                    iq = receive(iq, radar.receiver, wf, seed=seed, first_chirp=done)
+                done += t.size
+                t_parts.append(t)
+                iq_parts.append(iq)
+                if progress is not None:
+                    progress(t.size)
+            chirp_t = np.concatenate(t_parts) if t_parts else np.zeros(0)
+            iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+            if iq_transform is not None:
+                iq = iq_transform(name, iq)
+            t1 = time.perf_counter()
+            sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0)
         t2 = time.perf_counter()
         timing["synthesis"] = timing.get("synthesis", 0.0) + t1 - t0
         timing["dsp"] = timing.get("dsp", 0.0) + t2 - t1
