@@ -39,7 +39,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy.signal import get_window
 
 from processing.dsp_config import DEFAULT_MTI_CUTOFF_MPS, GLASGOW_DSP, DSPConfig
-from processing.fast_time import Projection, doppler_band, project
+from processing.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
 from processing.mti import mti_filter
 from processing.waveform import C0, Waveform
 
@@ -63,7 +63,8 @@ class Signature:
         mean_velocity: mean radial velocity [T] in m/s (eq. 8).
         range: range axis [R] in metres (bistatic: half the total path).
         range_distribution: p'(r, t) [R, T] (eq. 10), columns sum to 1 (or 0 if empty).
-        valid: [T] bool, True where the window carried signal.
+        valid: [T] bool, True where the window carried signal (above the receiver noise by
+            `detection_snr_db` when the noise level is known; mean velocity is 0 elsewhere).
         power: [T] total power of each p(v,t) column before normalisation (arbitrary units).
         carrier_hz: carrier f_ref [Hz] that `velocity` refers to (v = -f_D c / (2 f_ref)).
         v_max: c / (4 f_ref PRI) [m/s], the Doppler ambiguity limit of `velocity` (0: unknown, old files).
@@ -146,8 +147,35 @@ def _velocity_axis(carrier_hz: float, pri_s: float, nfft: int) -> np.ndarray:
     return (np.arange(nfft) - nfft // 2) * dv
 
 
-def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig()) -> Signature:
+def noise_column_power(wf: Waveform, cfg: DSPConfig, noise_power: float, n_velocity: int) -> float:
+    """Expected total power of one p(v,t) column (before normalisation) for white receiver noise of
+    `noise_power` per complex IQ sample, over `n_velocity` kept velocity bins.
+
+    The unit-energy slow-time taper keeps a slow-time sample's noise variance s^2 in every Doppler bin, so a
+    column holds n_velocity s^2: coherent sum s^2 = P_n sum |h|^2; per range bin s_r^2 = P_n sum_m |W_mr|^2,
+    summed over the band for `incoherent`; for `magnitude` E[(sum_r |S_r|)^2] = (sum_r s_r sqrt(pi)/2)^2 +
+    sum_r s_r^2 (1 - pi/4) (Rayleigh magnitudes, bins taken as independent). The MTI filter changes white
+    noise by its stop band's share, below 1 % here (ignored).
+    """
+    if cfg.range_sum == "coherent":
+        h, _ = coherent_weights(wf, cfg)
+        return float(n_velocity * noise_power * np.sum(np.abs(h) ** 2))
+    w, rng = range_weights(wf, cfg)
+    s2 = noise_power * np.sum(np.abs(w) ** 2, axis=0)[doppler_band(rng, wf, cfg)]
+    if cfg.range_sum == "incoherent":
+        return float(n_velocity * s2.sum())
+    s = np.sqrt(s2)
+    return float(n_velocity * ((s.sum() * np.sqrt(np.pi) / 2) ** 2 + s2.sum() * (1 - np.pi / 4)))
+
+
+def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig(),
+                               noise_power: float | None = None) -> Signature:
     """Slow-time stage: all signatures of one link from its fast-time `Projection`.
+
+    `noise_power`: the receiver's noise power per complex IQ sample (IQ units), when known. A window then
+    counts as carrying signal (`valid`) only when its power exceeds the expected noise-only power
+    (`noise_column_power`) by `cfg.detection_snr_db`; its p(v,t) still shows what was received (the noise
+    spectrum), but its mean velocity is 0, never the mean of noise.
 
     Clutter removal (`cfg.static_removal`) on the range profiles and on the coherent sum's slow-time
     signal; p(v,t) over `cfg.window_chirps`-chirp windows every `cfg.hop_chirps` chirps (seed eqs. 6-8)
@@ -187,6 +215,10 @@ def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig()) -
         np.abs(velocity) <= cfg.velocity_crop_mps * (1 + 1e-12)
     p_vt, valid, total = _normalise(spec.T[keep].astype(np.float64), cfg.empty_floor, ref)
     mean_v = mean_velocity(p_vt, velocity[keep], v_max, cfg, periodic=bool(keep.all()))
+    if noise_power is not None and noise_power > 0:
+        floor = noise_column_power(wf, cfg, noise_power, int(keep.sum())) * 10 ** (cfg.detection_snr_db / 10)
+        valid = valid & (total > floor)
+        mean_v = np.where(valid, mean_v, 0.0)
 
     rpow = np.abs(prof).astype(np.float64) ** 2
     rwin = sliding_window_view(rpow, w, axis=0)[::hop].mean(axis=2) if n_win else np.zeros((0, rpow.shape[1]))
@@ -206,7 +238,8 @@ def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig()) -
                      v_max=float(v_max), range_doppler=rd, range_doppler_time=rd_t, range_doppler_velocity=rd_v)
 
 
-def signatures(iq: np.ndarray, wf: Waveform, cfg: DSPConfig = DSPConfig(), t0: float = 0.0) -> Signature:
+def signatures(iq: np.ndarray, wf: Waveform, cfg: DSPConfig = DSPConfig(), t0: float = 0.0,
+               noise_power: float | None = None) -> Signature:
     """All signatures of one link from raw IQ [C, N] whose first chirp starts at t0 seconds:
-    `signatures_from_projection(project(iq, wf, cfg, t0), cfg)`."""
-    return signatures_from_projection(project(iq, wf, cfg, t0), cfg)
+    `signatures_from_projection(project(iq, wf, cfg, t0), cfg, noise_power)`."""
+    return signatures_from_projection(project(iq, wf, cfg, t0), cfg, noise_power)

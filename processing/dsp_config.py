@@ -93,6 +93,10 @@ class DSPConfig(BaseModel):
         "the Doppler ambiguity interval centred on the distribution's circular mean")
     unwrap_min_concentration: float = Field(
         0.2, ge=0, le=1, description="circular resultant length below which 'unwrapped' falls back to 'seed'")
+    detection_snr_db: float = Field(6.0, ge=0, le=60, description="a window carries signal when its power "
+                                    "exceeds the receiver's expected noise-only power by this [dB] (when the "
+                                    "noise level is known; 6 dB is >10 standard deviations of a 64-bin noise "
+                                    "column's power)")
     range_doppler: bool = Field(True, description="compute the range-Doppler map")
     range_doppler_stride: int | None = Field(
         None, ge=1, le=10 ** 6, description="keep the range-Doppler map of every k-th window; default: the smallest k "

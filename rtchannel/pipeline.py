@@ -100,13 +100,14 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
     `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (signal-layer augmentation),
     and the kept IQ is the transformed one.
     """
-    from processing.receiver import receive
+    from processing.receiver import noise_power_per_sample, receive
     from processing.synthesis_projection import synthesise_projection
 
     timing = {} if timing is None else timing
     out = {}
     wf, dsp = radar.waveform, radar.dsp
     index = {link.name: i for i, link in enumerate(radar.links)}
+    noise = None if radar.receiver is None else noise_power_per_sample(radar.receiver, wf.fs)
     for name, ps in paths.items():
         seed = (int(noise_seed), index.get(name, 0))
         t0 = time.perf_counter()
@@ -114,7 +115,7 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
             chirp_t, proj = synthesise_projection(ps, wf, dsp, receiver=radar.receiver, seed=seed, method=synthesis,
                                                   oversample=oversample, progress=progress)
             t1 = time.perf_counter()
-            sig = signatures_from_projection(proj, dsp)
+            sig = signatures_from_projection(proj, dsp, noise)
             iq = None
         else:
             t_parts, iq_parts = [], []
@@ -132,7 +133,7 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
             if iq_transform is not None:
                 iq = iq_transform(name, iq)
             t1 = time.perf_counter()
-            sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0)
+            sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0, noise_power=noise)
         t2 = time.perf_counter()
         timing["synthesis"] = timing.get("synthesis", 0.0) + t1 - t0
         timing["dsp"] = timing.get("dsp", 0.0) + t2 - t1

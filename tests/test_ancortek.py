@@ -4,6 +4,7 @@ import pytest
 
 from processing.ancortek import AncortekFormatError, read_dat, write_dat
 from processing.dsp import signatures
+from processing.receiver import noise_power_per_sample
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import RadarConfig
 from rtchannel.pipeline import simulate
@@ -30,7 +31,9 @@ def test_round_trip_reproduces_signature(simulated, tmp_path):
     assert rec.waveform.bandwidth_hz == pytest.approx(wf.bandwidth_hz, rel=1e-12)
     # 9 significant digits reproduce float32 IQ exactly
     np.testing.assert_array_equal(rec.iq[0], link.iq.astype(np.complex64))
-    sig = signatures(rec.iq[0], rec.waveform, dsp, t0=float(link.chirp_times[0]))
+    # the simulation knew its receiver's noise level: give the DSP the same (a real recording does not)
+    sig = signatures(rec.iq[0], rec.waveform, dsp, t0=float(link.chirp_times[0]),
+                     noise_power=noise_power_per_sample(radar.receiver, wf.fs))
     ref = link.signature
     np.testing.assert_allclose(sig.velocity, ref.velocity, rtol=1e-12)
     np.testing.assert_allclose(sig.time, ref.time, rtol=1e-12)
