@@ -9,7 +9,7 @@ def cmd_compare(args) -> int:
 
     from rtchannel.cli.common import UserError, check_output, load_radar, parse_options, split_list
     from rtchannel.analysis.compare import compare
-    from rtchannel.motion.procedural import ACTIVITIES
+    from rtchannel.motion.activities import ACTIVITIES
     from rtchannel.backends import BACKENDS
 
     args.backends = split_list(args.backends)
@@ -39,7 +39,7 @@ def cmd_compare(args) -> int:
 def add_compare(sub) -> None:
     """Register the `compare` subcommand."""
     from rtchannel.cli.common import add_radar_args
-    from rtchannel.motion.procedural import ACTIVITIES
+    from rtchannel.motion.activities import ACTIVITIES
 
     p = sub.add_parser("compare", help="one set of activities through several backends: DTW table + p(v,t) figure",
                        description="Simulate procedural activities through two or more backends and write the "
