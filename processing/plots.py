@@ -55,6 +55,13 @@ def _margins(fig: Figure, left: float, right: float, bottom: float, top: float, 
                         wspace=wspace / cell_w, hspace=hspace / cell_h)
 
 
+def _colorbar_right(fig: Figure, im) -> None:
+    """One colour bar in the figure's right margin (1.2 in) for every map: all share the -40..0 dB scale
+    (each map re its own strongest cell), and one bar is one Axes fewer to draw per map."""
+    w = fig.get_figwidth()
+    fig.colorbar(im, cax=fig.add_axes((1 - 0.95 / w, 0.15, 0.15 / w, 0.7)), label="dB re max")
+
+
 def _save(fig, path: Path, title: str) -> Path:
     if title:
         fig.suptitle(title, y=0.99, va="top")
@@ -64,8 +71,8 @@ def _save(fig, path: Path, title: str) -> Path:
 def plot_pvt(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
     """Micro-Doppler spectrogram p(v,t) x window power of every link (dB re the recording's strongest cell,
     40 dB range) with the mean radial velocity (eq. 8) over the windows that carry signal."""
-    fig = _figure(5.5 * len(sigs), 4)
-    _margins(fig, left=0.75, right=0.25, bottom=0.5, top=0.6, wspace=1.0, ncols=len(sigs))
+    fig = _figure(5.2 * len(sigs) + 0.9, 4)
+    _margins(fig, left=0.75, right=1.2, bottom=0.5, top=0.6, wspace=0.8, ncols=len(sigs))
     axes = fig.subplots(1, len(sigs), squeeze=False)
     for ax, (name, s) in zip(axes[0], sigs.items()):
         extent = (*_edges(s.time), *_edges(s.velocity))
@@ -76,7 +83,7 @@ def plot_pvt(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
         ax.set(title=f"{name}: micro-Doppler p(v,t)", xlabel="time [s]",
                ylabel="radial velocity [m/s] (+ = approaching)")
         ax.legend(loc="upper right", fontsize=8)
-        fig.colorbar(im, ax=ax, label="dB re max", fraction=0.1, pad=0.03)
+    _colorbar_right(fig, im)
     return _save(fig, path, title)
 
 
@@ -96,15 +103,15 @@ def plot_mean_velocity(sigs: dict[str, Signature], path: Path, title: str = "") 
 
 def plot_range(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
     """Range-time map: the range distribution p'(r,t) (seed eq. 10) x window power, dB re max, 40 dB."""
-    fig = _figure(5.5 * len(sigs), 4)
-    _margins(fig, left=0.6, right=0.25, bottom=0.5, top=0.6, wspace=0.7, ncols=len(sigs))
+    fig = _figure(5.2 * len(sigs) + 0.9, 4)
+    _margins(fig, left=0.6, right=1.2, bottom=0.5, top=0.6, wspace=0.6, ncols=len(sigs))
     axes = fig.subplots(1, len(sigs), squeeze=False)
     for ax, (name, s) in zip(axes[0], sigs.items()):
         extent = (*_edges(s.time), *_edges(s.range))
         im = ax.imshow(_db(_weighted(s.range_distribution, s.power)), origin="lower", aspect="auto", extent=extent,
                        cmap="viridis", vmin=-DYNAMIC_RANGE_DB, vmax=0, interpolation="nearest")
         ax.set(title=f"{name}: range-time map", xlabel="time [s]", ylabel="range [m]")
-        fig.colorbar(im, ax=ax, label="dB re max", fraction=0.1, pad=0.03)
+    _colorbar_right(fig, im)
     return _save(fig, path, title)
 
 
@@ -146,9 +153,7 @@ def plot_range_doppler(sigs: dict[str, Signature], path: Path, title: str = "", 
         ax.set_xlabel("velocity [m/s]")
         for side in ("top", "right", "left", "bottom"):
             ax.spines[side].set_visible(False)
-    # colour bar in the right margin (not stolen from the maps)
-    cax = fig.add_axes((1 - 0.95 / fig.get_figwidth(), 0.15, 0.15 / fig.get_figwidth(), 0.7))
-    fig.colorbar(im, cax=cax, label="dB re max")
+    _colorbar_right(fig, im)
     return _save(fig, path, title)
 
 
