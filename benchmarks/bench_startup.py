@@ -69,7 +69,8 @@ def cases(backends: list[str], out: Path) -> dict[str, list[str]]:
     for b in backends:
         for plots in (True, False):
             label = f"{b}{'' if plots else ' --no-plots'}"
-            out_cases[label] = [*py, "--backend", b, "--out", str(out / label.replace(" ", "_")), "--quiet",
+            # no --quiet: the command as a user types it (tqdm turns itself off on the captured stderr)
+            out_cases[label] = [*py, "--backend", b, "--out", str(out / label.replace(" ", "_")),
                                 *([] if plots else ["--no-plots"])]
     return out_cases
 
