@@ -13,7 +13,8 @@ def cmd_bench(args) -> int:
 
     if args.chain:
         options = parse_options(args.option, per_backend=True).get(args.chain, {})
-        result = bench_chain(args.chain, repeats=args.repeats, duration=args.duration, **options)
+        result = bench_chain(args.chain, repeats=args.repeats, duration=args.duration, keep_iq=args.keep_iq,
+                             **options)
         text = json.dumps(result, indent=2)
         print(text)
         if args.out:
@@ -54,6 +55,8 @@ def add_bench(sub) -> None:
                        "whole chain (medians, per-stage split) as JSON.")
     p.add_argument("--chain", metavar="BACKEND", help="time only this backend's chain (points, facets, sionna)")
     p.add_argument("--option", action="append", metavar="BACKEND.NAME=VALUE", help="backend option for --chain")
+    p.add_argument("--keep-iq", action="store_true",
+                   help="with --chain: time the raw-IQ route (keep_iq) instead of the default signature-only route")
     p.add_argument("--quick", action="store_true",
                    help="sweep without Sionna (reference: facets on the full mesh); minutes instead of an hour")
     p.add_argument("--repeats", type=positive_int, default=3, help="timed repeats per setting (default 3)")
