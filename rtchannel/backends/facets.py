@@ -29,9 +29,11 @@ Antennas (`LinkSpec.tx_antenna`, `rx_antenna`; `facet_paths` takes the radar's, 
 every path is multiplied by sqrt(G_tx(u_tx)) sqrt(G_rx(u_rx)) (`processing.antenna.gain`), u the direction
 from the antenna towards the facet centroid, or, for an antenna mirrored in wall w, towards the centroid's
 mirror image in w (the reflection point lies on that line); the merged monostatic twins get their own
-factors. Like the rest of the gain it is evaluated at the traced frames and interpolated in between (a body
-at 2 m moving 1 m/s turns 3 deg per 0.1 s: the linear interpolation error of a 30-deg Gaussian beam's
-amplitude is ~ (3 deg)^2 / 8 x 2 ln2 x 2 / (30 deg)^2 = 0.35 %). Both antennas isotropic: no factor at all.
+factors. Like the rest of the gain it is evaluated at the traced frames and interpolated in between (the
+trunk at 2 m moving 1 m/s turns 3 deg per 0.1 s: the linear interpolation error of a 30-deg Gaussian beam's
+amplitude exp(-2 ln2 psi^2 / HPBW^2) is at most (3 deg)^2 / 8 x 4 ln2 / (30 deg)^2 = 0.35 % per antenna;
+fast limbs err more, like the rest of the interpolated gain; ``trace_fps=None`` evaluates every frame).
+Both antennas isotropic: no factor at all (gains bit-identical to the unit-gain scale).
 
 Diffuse phase (``seed``, default 0; None: none): a rough surface's diffuse field has a random phase per
 resolution cell, fixed while the cell moves with the skin. Each facet gets one uniform phase
