@@ -150,7 +150,8 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         scene: `rtchannel.scene.rt_scene.RTScene` holding this mesh as its body (``set_body``, ray casts).
         times: frame times [K] (s). vertices: [K, V, 3] (m). faces: [F, 3].
         velocities: vertex velocities [K, V, 3] (m/s) for analytic delay rates, or None.
-        links: radar links. wavelength: carrier wavelength [m]. material: the mesh's surface material.
+        links: radar links (`LinkSpec`: positions and antenna patterns). wavelength: carrier wavelength [m].
+            material: the mesh's surface material.
         trace_idx: frames at which visibility and gains are evaluated (default all).
         walls: planar walls for image paths (empty: no body-wall multipath).
         po: add the physical-optics term. min_relative_gain_db: drop paths whose peak |gain| is more
