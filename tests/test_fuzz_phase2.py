@@ -1,7 +1,7 @@
 """PHASE 2 of issue 13 (hardening): radar/waveform/DSP bounds, plans and the commands' own arguments.
 
-Cases still marked xfail wait for their fix (the reason says which); the others are regression tests. Cases that would
-allocate many GiB or hang with today's code are ``run=False`` (listed, not executed). The contract is the
+Every case is now a regression test (the last xfail cases, the plans', pass since plan_yaml.py); a new open
+case is added as xfail with a reason naming its owner (``run=False`` if it would allocate GiB or hang). The contract is the
 same as in `test_fuzz_inputs.py`: one line on stderr naming the file/field, exit status 2, before any
 long work; a valid input gives finite output.
 
@@ -24,7 +24,7 @@ P2 = "phase 2 (issue 13): "
 @pytest.fixture(autouse=True)
 def no_long_work(monkeypatch):
     """Invalid input must be refused before any simulation starts: simulating here fails the case at once
-    (which also keeps these xfail cases fast while they are unfixed)."""
+    (which also keeps an unfixed case fast)."""
     import rtchannel.pipeline as pipeline
 
     def started(*a, **k):
