@@ -87,11 +87,14 @@ def test_oversized_and_binary_files(tmp_path):
         read_plan_yaml(binary)
 
 
-def test_empty_axes_are_refused_for_programmatic_plans_too():
+def test_empty_axes_and_nested_options_are_refused_for_programmatic_plans_too():
     from rtchannel.dataset.plan import Plan
 
     plan = Plan.model_validate(yaml.safe_load(FALL + "physical: {directions: []}\n"))
     with pytest.raises(ConfigError, match="physical.directions: empty list"):
+        expand(plan)
+    plan = Plan.model_validate(yaml.safe_load(FALL + "backend_options: {lod: [1, 2]}\n"))
+    with pytest.raises(ConfigError, match="backend_options.lod: expected a single value"):
         expand(plan)
 
 

@@ -360,7 +360,8 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
 
 def expand(plan: Plan) -> list[WorkItem]:
     """All work items of `plan`, sorted by item_id (deterministic). ConfigError first if the plan would
-    have no items or more than `plan_yaml.MAX_PLAN_ITEMS`."""
+    have no items or more than `plan_yaml.MAX_PLAN_ITEMS`, or a backend option is not a single value."""
+    check_backend_options(plan.backend_options, f"plan {plan.name!r}")  # a Plan built in code skips load_plan
     count_items(plan, lambda s: len(_motion_files(s)), f"plan {plan.name!r}")
     ml, ph, sg = plan.motion, plan.physical, plan.signal
     motion_axes = list(itertools.product(ml.heights, ml.time_scales, ml.mirror, ml.headings_deg, ml.starts))
