@@ -43,8 +43,8 @@ from processing.mti import mti_filter
 from processing.waveform import C0, Waveform
 from processing.windows import get_window
 
-__all__ = ["DEFAULT_MTI_CUTOFF_MPS", "DSPConfig", "GLASGOW_DSP", "Projection", "Signature", "mean_velocity",
-           "project", "signatures", "signatures_from_projection"]
+__all__ = ["DEFAULT_MTI_CUTOFF_MPS", "DSPConfig", "GLASGOW_DSP", "Projection", "Signature", "column_sums",
+           "mean_velocity", "project", "signatures", "signatures_from_projection"]
 
 _CHUNK = 1 << 22  # complex STFT values computed at once (64 MB): bounds memory for long, heavily overlapped runs
 
@@ -90,6 +90,17 @@ class Signature:
     range_doppler_velocity: np.ndarray | None = None
 
 
+def column_sums(weights: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """sum_v weights[v] p[v, t] for every column t of p [V, T] (weights [V], real or complex), summed in an
+    order fixed by the shapes alone: `np.add.reduce` over axis 0 of a C-contiguous product.
+
+    Not `weights @ p`: OpenBLAS splits a matrix-vector product's work by its thread count, so the complex
+    product of the unwrapped mean velocity gave different last bits with OPENBLAS_NUM_THREADS=1 and 2
+    (measured, T = 500 windows), and its result also depends on p's memory layout.
+    """
+    return np.add.reduce(np.ascontiguousarray(np.asarray(weights)[:, None] * p), axis=0)
+
+
 def mean_velocity(p_vt: np.ndarray, velocity: np.ndarray, v_max: float, cfg: DSPConfig = DSPConfig(),
                   periodic: bool = True) -> np.ndarray:
     """Mean radial velocity [T] in m/s of p(v,t) [V, T] on the axis `velocity` [V] (seed eq. 8).
@@ -100,20 +111,21 @@ def mean_velocity(p_vt: np.ndarray, velocity: np.ndarray, v_max: float, cfg: DSP
     bias that the rectangular window's sidelobes, wrapping round the band edge, give a fast target.
     `periodic=False` (a cropped axis, not a whole period) always uses 'seed'.
     """
-    mean = velocity @ p_vt
+    mean = column_sums(velocity, p_vt)
     if cfg.mean_velocity == "seed" or not periodic or p_vt.size == 0:
         return mean
-    z = np.exp(1j * np.pi * velocity / v_max) @ p_vt
+    z = column_sums(np.exp(1j * np.pi * velocity / v_max), p_vt)
     centre = np.angle(z) * v_max / np.pi
     use = np.abs(z) >= cfg.unwrap_min_concentration
     v = centre[None, :] + np.mod(velocity[:, None] - centre[None, :] + v_max, 2 * v_max) - v_max
-    return np.where(use, (v * p_vt).sum(axis=0), mean)
+    return np.where(use, np.add.reduce(np.ascontiguousarray(v * p_vt), axis=0), mean)
 
 
 def _normalise(power: np.ndarray, floor: float, reference: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Column-normalised distribution of power [X, T], with columns below `floor` times the larger of the
-    strongest column and `reference` set to 0 (never NaN)."""
-    total = power.sum(axis=0)
+    strongest column and `reference` set to 0 (never NaN). Sums in a fixed order (C layout, see `column_sums`)."""
+    power = np.ascontiguousarray(power)
+    total = np.add.reduce(power, axis=0)
     peak = max(total.max() if total.size else 0.0, reference)
     valid = total > max(floor * peak, np.finfo(np.float64).tiny)
     dist = np.zeros_like(power)

@@ -121,7 +121,7 @@ def coherent_weights(wf: Waveform, cfg) -> tuple[np.ndarray, float]:
     h = np.zeros(n, np.complex128)
     h[m0:] = seg
     w2 = np.abs(h) ** 2
-    f_eff = wf.start_hz + wf.slope * float((np.arange(n) / wf.fs) @ w2 / w2.sum())
+    f_eff = wf.start_hz + wf.slope * float(np.add.reduce(np.arange(n) / wf.fs * w2) / np.add.reduce(w2))
     return h, f_eff
 
 
@@ -132,6 +132,16 @@ def path_response(weights: np.ndarray, tau, wf: Waveform) -> np.ndarray:
     m = np.arange(wf.samples_per_chirp)
     tone = np.exp(2j * np.pi * (wf.start_hz * tau + wf.slope * tau * m / wf.fs))  # [..., N]
     return tone @ weights
+
+
+def _rows_dot(iq: np.ndarray, h: np.ndarray, rows: int = 8192) -> np.ndarray:
+    """iq [C, N] @ h [N] in complex128 as a fixed-order sum per row (np.add.reduce along the contiguous
+    axis), in blocks of `rows` chirps (16 MB at N = 128): a BLAS matrix-vector product may split its
+    sums by thread count, and the same seed must give the same bytes for any OPENBLAS_NUM_THREADS."""
+    out = np.empty(iq.shape[0], np.complex128)
+    for i in range(0, iq.shape[0], rows):
+        out[i:i + rows] = np.add.reduce(iq[i:i + rows].astype(np.complex128) * h, axis=1)
+    return out
 
 
 def project(iq: np.ndarray, wf: Waveform, cfg, t0: float = 0.0) -> Projection:
@@ -148,5 +158,5 @@ def project(iq: np.ndarray, wf: Waveform, cfg, t0: float = 0.0) -> Projection:
     coh, f_eff = None, wf.carrier_hz
     if cfg.range_sum == "coherent":
         h, f_eff = coherent_weights(wf, cfg)
-        coh = iq.astype(np.complex128) @ h
+        coh = _rows_dot(iq, h)
     return Projection(profiles=prof, range=rng, waveform=wf, coherent=coh, coherent_carrier_hz=f_eff, t0=t0)

@@ -20,6 +20,7 @@ from typing import Literal
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
+from processing.atomic import atomic_path
 from processing.colormaps import colormap_inverse
 from processing.dsp import Signature
 from processing.spectrogram_image import ImageLayout, SpectrogramImageError, cell_edges
@@ -142,8 +143,8 @@ def write_spectrogram_image(path: str | Path, velocity: np.ndarray, time: np.nda
         img = render_image(velocity, time, layout, **kwargs)
     except ValueError as e:
         raise SpectrogramImageError(f"{path}: {e}") from None
-    path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(img).save(path, format="PNG")
+    with atomic_path(path) as tmp:
+        Image.fromarray(img).save(tmp, format="PNG")
     return path
 
 

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy import sparse
 
+from processing.atomic import atomic_path
 from rtchannel.scene.assets import avatar_dir
 from rtchannel.body.meshgeom import closest_points_on_mesh
 from rtchannel.body.skeleton import JOINT_INDEX, JOINT_NAMES, SOLE_OFFSET_M, Rig, avatar_rig
@@ -189,11 +190,13 @@ def build_lod(lod: str) -> Avatar:
 
 
 def save_lod(av: Avatar, path: Path, source_hash: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """Write the LOD cache atomically: two processes building the same LOD at once (dataset workers)
+    each rename a complete file, and a killed build leaves no torn .npz that `np.load` would fail on."""
     w = av.weights.tocsr()
-    np.savez_compressed(path, vertices=av.vertices, faces=av.faces, w_data=w.data,
-                        w_indices=w.indices.astype(np.int32), w_indptr=w.indptr.astype(np.int32),
-                        source_hash=np.array(source_hash))
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:  # a file object: np.savez would append .npz to a name
+        np.savez_compressed(f, vertices=av.vertices, faces=av.faces, w_data=w.data,
+                            w_indices=w.indices.astype(np.int32), w_indptr=w.indptr.astype(np.int32),
+                            source_hash=np.array(source_hash))
 
 
 @lru_cache(maxsize=None)

@@ -19,8 +19,9 @@ def cmd_bench(args) -> int:
         text = json.dumps(result, indent=2)
         print(text)
         if args.out:
-            args.out.mkdir(parents=True, exist_ok=True)
-            (args.out / f"bench_{args.chain}.json").write_text(text + "\n")
+            from processing.atomic import write_text_atomic
+
+            write_text_atomic(args.out / f"bench_{args.chain}.json", text + "\n")
         return 0
     from tqdm import tqdm
 

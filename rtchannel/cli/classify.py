@@ -115,7 +115,10 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--no-group-split", action="store_true",
                    help="split items freely (default: all copies of one motion source on one side)")
     g.add_argument("--seed", type=int, default=0)
-    g.add_argument("--threads", type=int, help="torch CPU threads (default: 2, or 1 if the machine is busy)")
+    g.add_argument("--threads", type=positive_int,
+                   help="CPU threads torch uses while training (intra-op parallelism of its convolutions and "
+                   "matrix products; numpy/BLAS, the DSP and the data loading are not affected). "
+                   "Default 1: weights are reproducible only at a fixed thread count (1 and 2 differ)")
     g.add_argument("--no-batch-norm", action="store_true", help="the literal seed FEN without BatchNorm")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
@@ -199,6 +202,7 @@ def _load_model(path: Path):
 
 def evaluate_arrays(clf, x, y, out_dir: Path | None, title: str, names=None, log=print):
     """Predict, report and (if `out_dir`) write confusion PNG/CSV, metrics.json and predictions.csv."""
+    from processing.atomic import write_text_atomic
     from processing.classifier import classification_report
     from processing.classifier.metrics import plot_confusion, write_confusion_csv
 
@@ -209,11 +213,11 @@ def evaluate_arrays(clf, x, y, out_dir: Path | None, title: str, names=None, log
         out_dir.mkdir(parents=True, exist_ok=True)
         plot_confusion(rep, out_dir / "confusion.png")
         write_confusion_csv(rep, out_dir / "confusion.csv")
-        (out_dir / "metrics.json").write_text(json.dumps({"title": title, **rep.as_dict()}, indent=1))
+        write_text_atomic(out_dir / "metrics.json", json.dumps({"title": title, **rep.as_dict()}, indent=1))
         rows = ["name,true,predicted,confidence"] + [
             f"{(names[i] if names else i)},{clf.classes[y[i]]},{clf.classes[pred[i]]},{proba[i, pred[i]]:.4f}"
             for i in range(len(y))]
-        (out_dir / "predictions.csv").write_text("\n".join(rows) + "\n")
+        write_text_atomic(out_dir / "predictions.csv", "\n".join(rows) + "\n")
     log(f"{title}:\n{rep.summary()}")
     return rep
 
@@ -341,14 +345,18 @@ def cmd_crossval(args) -> int:
                          "macro_f1_pct": round(100 * rep.macro_f1, 2), "train_s": round(res.seconds, 1),
                          "note": n_note})
     import csv
+    import io
 
-    with open(out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    from processing.atomic import write_text_atomic
+
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+    write_text_atomic(out, buf.getvalue())
     md = ["| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
     md += ["| " + " | ".join(str(v) for v in r.values()) + " |" for r in rows]
-    out.with_suffix(".md").write_text("\n".join(md) + "\n")
+    write_text_atomic(out.with_suffix(".md"), "\n".join(md) + "\n")
     print("\n".join(md))
     print(f"wrote {out} and {out.with_suffix('.md')}")
     return 0

@@ -45,6 +45,7 @@ def cmd_dataset(args) -> int:
     if args.retries < 0:
         raise UserError(f"--retries must be >= 0, got {args.retries}")
     from rtchannel.dataset.plan import expand, load_plan, resolve_config
+    from rtchannel.errors import InputError
 
     try:
         path = resolve_config(args.config)
@@ -52,6 +53,8 @@ def cmd_dataset(args) -> int:
         items = expand(plan)
     except ValidationError as e:
         raise UserError(validation_line(e, f"plan {args.config}")) from None
+    except InputError:
+        raise  # already one line naming the plan file (rtchannel.cli.main prints it)
     except (FileNotFoundError, ValueError) as e:
         raise UserError(f"plan {args.config}: {e}") from None
     from rtchannel.backends import BACKENDS, unknown_options

@@ -65,7 +65,9 @@ def build_motion(m: dict) -> Motion:
             mid = 0.5 * (motion.positions[0, 0, :2] + motion.positions[-1, 0, :2])
             motion = motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
         return motion
-    return _cached(_MOTIONS, m["key"], make)
+    # keyed by the whole motion dict, not m["key"]: motion ids repeat across plans ("fall-00-0000-m00" of
+    # any plan), and a process that ran another plan first reused that plan's motion (different bytes)
+    return _cached(_MOTIONS, json.dumps(m, sort_keys=True, default=str), make)
 
 
 def item_gains(gain_set: dict, rng: np.random.Generator) -> np.ndarray:

@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from processing.dsp import DSPConfig
@@ -25,6 +24,7 @@ from processing.waveform import Waveform
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
 from rtchannel.radar import Link, direction_angles
 from rtchannel.body.scatterers import SCATTERER_NAMES
+from rtchannel.dataset.plan_yaml import check_backend_options, count_items, read_plan_yaml
 
 MOTION_SUFFIXES = (".bvh", ".c3d")
 PRESETS_DIR = Path(__file__).with_name("presets")
@@ -257,16 +257,13 @@ def resolve_config(spec: str | Path) -> Path:
 def load_plan(spec: str | Path, **overrides) -> Plan:
     """Validate a YAML/JSON plan (file or preset name); `files` paths become absolute (relative to the plan).
 
-    Raises pydantic.ValidationError naming the bad field, FileNotFoundError, or ValueError (bad YAML).
+    Raises pydantic.ValidationError naming the bad field, FileNotFoundError, or ConfigError naming the file
+    (bad or oversized YAML, non-scalar backend options, an empty axis or too many items: `plan_yaml`).
     """
     path = resolve_config(spec)
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as e:
-        raise ValueError(f"plan {path}: not valid YAML ({str(e).splitlines()[0]})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"plan {path}: expected a mapping at the top level")
+    data = read_plan_yaml(path)
     data.update({k: v for k, v in overrides.items() if v is not None})
+    check_backend_options(data.get("backend_options"), f"plan {path}")
     plan = Plan.model_validate(data)
     sources = []
     for s in plan.motion.sources:
@@ -274,7 +271,9 @@ def load_plan(spec: str | Path, **overrides) -> Plan:
             f = Path(s.files).expanduser()
             s = s.model_copy(update={"files": str((f if f.is_absolute() else path.parent / f).resolve())})
         sources.append(s)
-    return plan.model_copy(update={"motion": plan.motion.model_copy(update={"sources": sources})})
+    plan = plan.model_copy(update={"motion": plan.motion.model_copy(update={"sources": sources})})
+    count_items(plan, lambda s: len(_motion_files(s)), f"plan {path}")  # counted, not expanded
+    return plan
 
 
 @dataclass(frozen=True)
@@ -360,7 +359,10 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
 
 
 def expand(plan: Plan) -> list[WorkItem]:
-    """All work items of `plan`, sorted by item_id (deterministic)."""
+    """All work items of `plan`, sorted by item_id (deterministic). ConfigError first if the plan would
+    have no items or more than `plan_yaml.MAX_PLAN_ITEMS`, or a backend option is not a single value."""
+    check_backend_options(plan.backend_options, f"plan {plan.name!r}")  # a Plan built in code skips load_plan
+    count_items(plan, lambda s: len(_motion_files(s)), f"plan {plan.name!r}")
     ml, ph, sg = plan.motion, plan.physical, plan.signal
     motion_axes = list(itertools.product(ml.heights, ml.time_scales, ml.mirror, ml.headings_deg, ml.starts))
     phys_axes = list(itertools.product(ph.rotations(), ph.waveforms, ph.link_sets))

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from processing.atomic import atomic_path
 from rtchannel.body.avatar import load_avatar
 from rtchannel.body.skeleton import Motion
 from rtchannel.body.skinning import skin_vertices
@@ -149,8 +150,12 @@ def render_scene(motion: Motion, frames, radar_positions, out_png, lod: str = "1
     bodies = [_mesh(mi, f"body{k}", v, av.faces, _PALETTE[k % len(_PALETTE)]) for k, v in enumerate(verts)]
     scene = _scene(mi, bodies, radars, camera, size, spp, _floor(pts), static)
     out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    mi.util.write_bitmap(str(out), mi.render(scene), write_async=False)
+    suffix = out.suffix.lower()
+    # what mi.util.write_bitmap does, but into the atomic temporary (whose .tmp suffix names no format)
+    bitmap = mi.util.convert_to_bitmap(mi.render(scene), suffix in (".png", ".jpg", ".jpeg"))
+    fmt = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".exr": "OpenEXR"}.get(suffix, "Auto")
+    with atomic_path(out) as tmp:
+        bitmap.write(str(tmp), getattr(mi.Bitmap.FileFormat, fmt))
     return out
 
 
@@ -194,13 +199,14 @@ def render_strip(motion: Motion, out, n: int = 8, lod: str = "5k", *, panel=(240
         ImageDraw.Draw(img).text((6, 4), f"t = {f / motion.fps:.2f} s", fill=(0, 0, 0))
         images.append(img)
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     if out.suffix.lower() == ".gif":
-        images[0].save(out, save_all=True, append_images=images[1:], duration=int(1000 * motion.duration / max(1, n - 1)),
-                       loop=0)
+        with atomic_path(out) as tmp:
+            images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
+                           duration=int(1000 * motion.duration / max(1, n - 1)), loop=0)
     else:
         strip = Image.new("RGB", (panel[0] * n, panel[1]), "white")
         for k, img in enumerate(images):
             strip.paste(img, (k * panel[0], 0))
-        strip.save(out)
+        with atomic_path(out) as tmp:
+            strip.save(tmp, format="PNG")
     return out
