@@ -14,11 +14,9 @@ antennas of the backends' native scale.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from processing.antenna import AntennaPattern
@@ -104,23 +102,11 @@ class RadarConfig(BaseModel):
     @classmethod
     def from_file(cls, path: str | Path) -> "RadarConfig":
         """Load from YAML or JSON; raises pydantic's ValidationError naming a bad field, or
-        `rtchannel.errors.ConfigError` (one line naming the file) for syntax errors and non-mappings."""
-        from rtchannel.errors import ConfigError
+        `rtchannel.errors.ConfigError` (one line naming the file and line) for syntax errors, alias bombs and
+        non-mappings (`rtchannel.safe_yaml`)."""
+        from rtchannel.safe_yaml import read_yaml_mapping
 
-        path = Path(path)
-        if path.stat().st_size > 1_000_000:  # a radar description is a few hundred bytes
-            raise ConfigError(f"radar config {path}: larger than 1 MB; not a radar configuration")
-        text = path.read_text(errors="replace")
-        try:
-            data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-        except (json.JSONDecodeError, yaml.YAMLError) as e:
-            mark = getattr(e, "problem_mark", None)  # YAML marks count lines from 0, JSON from 1
-            line = mark.line + 1 if mark is not None else getattr(e, "lineno", None)
-            where = f" line {line}" if line else ""
-            raise ConfigError(f"radar config {path}:{where}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}") \
-                from None
-        if data is not None and not isinstance(data, dict):
-            raise ConfigError(f"radar config {path}: expected a mapping (waveform, dsp, links, ...) at the top level")
+        data = read_yaml_mapping(Path(path), "radar config", max_bytes=1_000_000)  # a radar is a few hundred bytes
         return cls.model_validate(data or {})
 
     def rotated(self, angle_deg: float) -> "RadarConfig":

@@ -104,3 +104,17 @@ def test_backend_option_values(tmp_path):
     for value in ("[1]", "{x: 1}", ".inf", "!!binary aGk="):
         with pytest.raises(ConfigError, match="backend_options.b:"):
             load_plan(_plan(tmp_path, FALL + f"backend_options: {{a: 1, b: {value}}}\n"))
+
+
+def test_radar_file_alias_bomb_is_one_line(tmp_path, capsys):
+    """Radar files go through the same bounded reader: a billion-laughs file is refused without expanding."""
+    from rtchannel.cli import main
+
+    lines = ["a0: &a0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"a{i}: &a{i} [*a{i - 1}, *a{i - 1}, *a{i - 1}, *a{i - 1}, *a{i - 1}, *a{i - 1}, *a{i - 1}, *a{i - 1}, "
+              f"*a{i - 1}, *a{i - 1}]" for i in range(1, 9)]
+    p = tmp_path / "radar.yaml"
+    p.write_text("\n".join(lines) + "\n")
+    assert main(["simulate", "--radar-config", str(p), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "radar config" in err and "alias" in err

@@ -3,8 +3,8 @@
 A plan is user input that drives hours of work, so it is refused (one `ConfigError` line naming the file
 and the line or field) before anything is expanded:
 
-* the text: at most `MAX_PLAN_BYTES`, UTF-8, valid YAML (errors give the line), at most `MAX_DEPTH`
-  levels of nesting, and at most `MAX_YAML_NODES` values *after* alias expansion. The size is counted on
+* the text (`rtchannel.safe_yaml`): at most `MAX_PLAN_BYTES`, UTF-8, valid YAML (errors give the line), at
+  most `MAX_DEPTH` levels of nesting, and at most `MAX_YAML_NODES` values *after* alias expansion. The size is counted on
   the composed node graph (each anchored node's expanded size is computed once), so a "billion laughs"
   alias bomb is refused in microseconds without ever being expanded; a recursive alias is refused too.
   Aliases themselves stay allowed (a plan may reuse a link set);
@@ -20,109 +20,17 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-import yaml
-
 from rtchannel.errors import ConfigError
+from rtchannel.safe_yaml import MAX_DEPTH, MAX_YAML_NODES, read_yaml_mapping  # noqa: F401 - re-exported
 
 MAX_PLAN_BYTES = 1 << 20  # 1 MiB: the seed preset is 2 kB
-MAX_YAML_NODES = 100_000  # values after alias expansion; a large hand-written plan has a few hundred
-MAX_DEPTH = 64  # nesting levels (PyYAML's composer recurses per level); a plan uses about 6
 MAX_PLAN_ITEMS = 1_000_000  # work items per plan (split larger datasets into several plans)
 SCALAR_TYPES = (str, bool, int, float)
 
 
-class _PlanLoader(yaml.SafeLoader):
-    """SafeLoader whose composer refuses more than `MAX_DEPTH` nesting levels (it recurses per level, so
-    a long run of '[' would otherwise end in a RecursionError after seconds)."""
-
-    _depth = 0
-
-    def compose_node(self, parent, index):  # noqa: D102 - PyYAML hook
-        if self._depth >= MAX_DEPTH:
-            raise yaml.MarkedYAMLError(problem=f"nested deeper than {MAX_DEPTH} levels",
-                                       problem_mark=self.peek_event().start_mark)
-        self._depth += 1
-        try:
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
-
-
-def _expanded_size(root: yaml.Node, where: str) -> int:
-    """Number of nodes `root` stands for once every alias is expanded (memoised over the shared graph;
-    iterative, so an alias cycle cannot recurse without bound)."""
-    size: dict[int, int] = {}
-    on_path: set[int] = set()
-    stack: list[yaml.Node] = [root]
-    while stack:
-        node = stack.pop()
-        key = id(node)
-        if key in size:
-            continue
-        if isinstance(node, yaml.ScalarNode):
-            size[key] = 1
-            continue
-        children = [c for pair in node.value for c in pair] if isinstance(node, yaml.MappingNode) else node.value
-        if key not in on_path:  # first visit: children first, then this node again
-            on_path.add(key)  # (the nodes on the stack's pending path: this node's ancestors)
-            stack.append(node)
-            for child in children:
-                if id(child) in on_path:
-                    raise ConfigError(f"{where}: line {child.start_mark.line + 1}: recursive YAML alias")
-                stack.append(child)
-            continue
-        on_path.discard(key)
-        size[key] = 1 + sum(size[id(c)] for c in children)
-        if size[key] > MAX_YAML_NODES:
-            raise ConfigError(f"{where}: line {node.start_mark.line + 1}: more than {MAX_YAML_NODES} values once "
-                              f"YAML aliases are expanded (an alias bomb?)")
-    return size[id(root)]
-
-
-def _yaml_error(e: yaml.YAMLError) -> str:
-    mark = getattr(e, "problem_mark", None)
-    problem = getattr(e, "problem", None) or getattr(e, "reason", None) or str(e).splitlines()[0]
-    at = f"line {mark.line + 1}: " if mark is not None else ""
-    return f"{at}not valid YAML ({' '.join(str(problem).split())[:120]})"
-
-
 def read_plan_yaml(path: Path) -> dict:
-    """The mapping in a YAML/JSON plan file; `ConfigError` naming the file (and line) for anything that
-    is not a small, well-formed YAML mapping (see the module docstring for the limits)."""
-    where = f"plan {path}"
-    try:
-        n_bytes = path.stat().st_size
-    except OSError as e:
-        raise ConfigError(f"{where}: cannot read ({e.strerror or e})") from None
-    if n_bytes > MAX_PLAN_BYTES:
-        raise ConfigError(f"{where}: {n_bytes} bytes, more than the {MAX_PLAN_BYTES} a plan may have")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise ConfigError(f"{where}: not UTF-8 text (byte {e.start})") from None
-    try:
-        loader = _PlanLoader(text)  # its reader already refuses non-printable characters
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{where}: {_yaml_error(e)}") from None
-    try:
-        node = loader.get_single_node()
-        if node is None:
-            return {}
-        _expanded_size(node, where)
-        data = loader.construct_document(node)
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{where}: {_yaml_error(e)}") from None
-    except ConfigError:
-        raise
-    except (ValueError, TypeError, OverflowError) as e:  # a tagged scalar that cannot be built (e.g. a bad date)
-        raise ConfigError(f"{where}: not valid YAML ({' '.join(str(e).split())[:120]})") from None
-    finally:
-        loader.dispose()
-    if data is None:
-        return {}
-    if not isinstance(data, dict):
-        raise ConfigError(f"{where}: expected a mapping at the top level, got a {type(data).__name__}")
-    return data
+    """The mapping in a YAML/JSON plan file (`rtchannel.safe_yaml.read_yaml_mapping` with the plan limits)."""
+    return read_yaml_mapping(path, "plan", MAX_PLAN_BYTES)
 
 
 def check_backend_options(options, where: str) -> None:
