@@ -65,3 +65,11 @@ def test_point_target_lands_in_its_range_and_velocity_bin(r0, v):
     r_first = r0 - v * sig.time[0]
     r_peak = sig.range[sig.range_distribution[:, 0].argmax()]
     assert abs(r_peak - r_first) <= wf.range_resolution
+
+
+def test_glasgow_radar_round_trips_through_json():
+    """Datasets and signature files store the radar as JSON: the Glasgow DSP (MTI cut-off in Hz, the m/s
+    field at its default) must validate again to the same configuration."""
+    r = RadarConfig.glasgow(height_m=0.9, distance_m=2.0)
+    again = RadarConfig.model_validate(r.model_dump(mode="json"))
+    assert again == r and again.dsp.mti_cutoff_hz == pytest.approx(3.75)

@@ -55,13 +55,18 @@ def build_motion(m: dict) -> Motion:
     """The augmented motion of an item's motion dict (cached per process by its key)."""
     def make():
         from rtchannel.motion.augment import augment
+        from rtchannel.motion.compose import back_and_forth, fit_clip
 
-        motion = augment(_base_motion(m), time_scale=m["time_scale"], mirror=m["mirror"],
+        motion = augment(_base_motion(m), time_scale=m["time_scale"], mirror=m["mirror"], trim=m.get("trim"),
                          heading_deg=m["heading_deg"], start=None if m["start"] == "auto" else m["start"])
+        if m.get("walk_legs", 1) > 1:
+            motion = back_and_forth(motion, m["walk_legs"], m["walk_turn_s"])
         if m["start"] == "auto" and m["activity"] == "walk":
             # a walk centred on the origin: it passes the room centre whatever its heading and length
             mid = 0.5 * (motion.positions[0, 0, :2] + motion.positions[-1, 0, :2])
             motion = motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
+        if m.get("clip_s") is not None:
+            motion = fit_clip(motion, m["clip_s"], m["clip_lead"])
         return motion
     return _cached(_MOTIONS, m["key"], make)
 
