@@ -1,0 +1,90 @@
+"""The `glasgow` dataset preset and the motion composition it relies on (back-and-forth walks, fixed clips)."""
+import numpy as np
+import pytest
+
+from rtchannel.body.skeleton import Motion
+from rtchannel.cli import main
+from rtchannel.dataset.items import build_motion
+from rtchannel.dataset.plan import expand, load_plan
+from rtchannel.motion.compose import back_and_forth, fit_clip
+from rtchannel.radar import RadarConfig
+
+# Largest per-frame step [m] of any joint at 60 fps: 0.12 m = 7.2 m/s. The fastest body part in walking, the
+# swinging foot, peaks at ~5 m/s (0.08 m per frame); a join without a turn (a pose switched to one facing
+# the other way) would move the hands and feet by 0.3-1 m in one frame.
+MAX_STEP_M = 0.12
+
+
+@pytest.fixture(scope="module")
+def items():
+    return expand(load_plan("glasgow"))
+
+
+def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
+    acts = {it.activity for it in items}
+    assert acts == {"walk", "sit", "stand", "pick", "fall"}
+    counts = {a: sum(it.activity == a for it in items) for a in acts}
+    assert len(set(counts.values())) == 1  # balanced classes
+    for it in items[:: max(1, len(items) // 60)] + [it for it in items if it.motion["kind"] == "file"][:5]:
+        radar = RadarConfig.model_validate(it.radar)
+        wf = radar.waveform
+        assert (wf.carrier_hz, wf.bandwidth_hz, wf.pri_s, wf.samples_per_chirp) == (5.8e9, 400e6, 1e-3, 128)
+        assert radar.antenna.kind == "yagi" and radar.receiver.transmit_power_dbm == 18.0
+        assert radar.dsp.window_chirps == 200 and radar.dsp.velocity_crop_mps == 6.0
+        (link,) = radar.links
+        # the dataset's people are 1-4 m from the radar: the activity spot (origin) is
+        assert 1.0 <= np.hypot(*link.tx_pos[:2]) <= 4.0 and it.angle_deg == 0.0
+        # horizontal boresight toward the person's vertical axis
+        np.testing.assert_allclose(radar.antenna.boresight_unit(link.tx_pos), -link.tx_pos * [1, 1, 0]
+                                   / np.hypot(*link.tx_pos[:2]), atol=1e-12)
+        assert it.motion["clip_s"] == (10.0 if it.activity == "walk" else 5.0)
+    # real motion capture where it exists: walks and the two parts of 75_17
+    files = {(it.activity, it.source) for it in items if it.motion["kind"] == "file"}
+    assert {("sit", "75_17.bvh"), ("stand", "75_17.bvh")} <= files
+    assert sum(a == "walk" for a, _ in files) == 3
+    # frontal falls only: generator seed = 0 (mod 3) is the forward fall
+    assert all(it.motion["params"]["seed"] % 3 == 0 for it in items if it.activity == "fall")
+
+
+@pytest.mark.parametrize("activity, kind", [("walk", "procedural"), ("walk", "file"), ("stand", "file")])
+def test_built_motions_have_the_clip_length_and_walks_go_back_and_forth(items, activity, kind):
+    it = next(i for i in items if i.activity == activity and i.motion["kind"] == kind)
+    m = build_motion(it.motion)
+    assert m.duration == pytest.approx(it.motion["clip_s"], abs=0.5 / m.fps)
+    assert np.abs(np.diff(m.positions, axis=0)).max() <= MAX_STEP_M
+    if activity == "walk":
+        # radial (x) hips velocity over 0.5 s steps: toward the radar (+x), away, toward again
+        x = m.positions[:: int(m.fps // 2), 0, 0]
+        signs = np.sign(np.diff(x)[np.abs(np.diff(x)) > 0.2])  # moving > 0.4 m/s
+        runs = signs[np.r_[True, signs[1:] != signs[:-1]]]
+        assert list(runs[:3]) == [1, -1, 1]
+
+
+def test_back_and_forth_returns_along_its_path_and_fit_clip_holds_poses():
+    leg = Motion.procedural("walk", speed=1.2, distance=2.0, pad_before=0.1, pad_after=0.1, seed=1)
+    two = back_and_forth(leg, 2, 0.8)
+    turn_frames = two.n_frames - 2 * leg.n_frames
+    assert turn_frames == round(0.8 * leg.fps) - 1
+    # the second leg ends where the first began (turned 180 deg about the path's midpoint), within the
+    # few cm the procedural gait's start and end feet placements differ by
+    np.testing.assert_allclose(two.positions[-1, 0, :2], leg.positions[0, 0, :2], atol=0.05)
+    assert np.abs(np.diff(two.positions, axis=0)).max() <= MAX_STEP_M
+    assert back_and_forth(leg, 1, 0.8) is leg
+    short = fit_clip(leg, leg.duration + 2.0, lead=0.25)
+    assert short.n_frames == round((leg.duration + 2.0) * leg.fps) + 1
+    before = int(round(0.25 * (short.n_frames - leg.n_frames)))
+    np.testing.assert_array_equal(short.positions[:before + 1], np.broadcast_to(leg.positions[0], (before + 1,
+                                                                                                    *leg.positions.shape[1:])))
+    np.testing.assert_array_equal(short.positions[-1], leg.positions[-1])
+    cut = fit_clip(leg, 1.0)
+    assert cut.n_frames == round(leg.fps) + 1
+    with pytest.raises(ValueError):
+        fit_clip(leg, 1.0, lead=2.0)
+
+
+def test_cli_radar_preset_errors_are_one_line(tmp_path, capsys):
+    assert main(["simulate", "--radar", "glasgow", "--radar-distance", "6", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "distance_m" in err
+    assert main(["simulate", "--radar-height", "1", "--out", str(tmp_path)]) == 2
+    assert "--radar glasgow only" in capsys.readouterr().err
