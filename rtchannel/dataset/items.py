@@ -123,6 +123,11 @@ def run_item(item: WorkItem) -> dict:
             if iq is not None:
                 iq = (iq * np.float32(overall)).astype(np.complex64)
             sig = replace(sig, power=sig.power * overall ** 2)  # normalised distributions are unchanged
+        if item.image_layout == "glasgow":  # the display chain of the real images (40 dB span, 8-bit colour)
+            from processing.spectrogram_image import glasgow_layout
+            from processing.spectrogram_image_writer import through_image
+
+            sig = through_image(sig, glasgow_layout(float(item.motion["clip_s"])))
         arrays = signature_arrays(sig)
         if item.keep_iq:
             arrays["iq"] = np.asarray(iq, dtype=np.complex64)

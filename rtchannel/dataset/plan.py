@@ -276,6 +276,9 @@ class SignalLayer(_Model):
 class Storage(_Model):
     items_per_shard: int = Field(16, ge=1, le=10000, description="work items per task and HDF5 shard")
     keep_iq: bool = Field(False, description="also store raw IQ (complex64; large)")
+    image_layout: Literal["glasgow"] | None = Field(
+        None, description="store each signature as the real images show it: drawn in this layout and read "
+        "back (processing.spectrogram_image_writer.through_image); glasgow needs clip_s of 5 or 10 s")
 
 
 class Plan(_Model):
@@ -289,6 +292,17 @@ class Plan(_Model):
     physical: PhysicalLayer = Field(default_factory=PhysicalLayer)
     signal: SignalLayer = Field(default_factory=SignalLayer)
     storage: Storage = Field(default_factory=Storage)
+
+    @model_validator(mode="after")
+    def _image_clips(self) -> "Plan":
+        if self.storage.image_layout == "glasgow":
+            clips = self.motion.clip_s
+            acts = {s.procedural or s.activity for s in self.motion.sources}
+            missing = sorted(a for a in acts if clips.get(a, clips.get("*")) not in (5.0, 10.0))
+            if missing:
+                raise ValueError(f"storage.image_layout glasgow: motion.clip_s must give {missing[0]} a length of "
+                                 "5 or 10 s (the Glasgow images' lengths)")
+        return self
 
     def digest(self) -> str:
         """Short sha256 of the normalised plan (identifies the dataset a folder holds)."""
@@ -350,6 +364,7 @@ class WorkItem:
     snr_db: float | None
     clutter: dict | None
     keep_iq: bool
+    image_layout: str | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -447,6 +462,6 @@ def expand(plan: Plan) -> list[WorkItem]:
                         direction=direction, link_set=ls.name, backend=plan.backend,
                         backend_options=dict(plan.backend_options), gain_set=gs.model_dump(mode="json"),
                         snr_db=snr, clutter=None if cl is None else cl.model_dump(mode="json"),
-                        keep_iq=plan.storage.keep_iq))
+                        keep_iq=plan.storage.keep_iq, image_layout=plan.storage.image_layout))
     items.sort(key=lambda it: it.item_id)
     return items
