@@ -88,3 +88,45 @@ def test_cli_radar_preset_errors_are_one_line(tmp_path, capsys):
     assert err.count("\n") == 1 and "distance_m" in err
     assert main(["simulate", "--radar-height", "1", "--out", str(tmp_path)]) == 2
     assert "--radar glasgow only" in capsys.readouterr().err
+
+
+def test_through_image_keeps_what_the_image_shows_and_drops_what_is_below_its_span():
+    """Columns 10 dB below the strongest one keep their peak velocity (within one image row, 12 m/s / 317 =
+    0.038 m/s, plus half a signature bin); columns 50 dB below it are under the 40 dB span: empty."""
+    from processing.dsp import Signature
+    from processing.spectrogram_image import glasgow_layout
+    from processing.spectrogram_image_writer import through_image
+
+    v = np.linspace(-6, 6, 373)
+    t = np.linspace(0.1, 4.9, 200)
+    v_true = np.where(t < 2.5, 1.0, -2.0)
+    p = np.exp(-0.5 * ((v[:, None] - v_true[None, :]) / 0.1) ** 2)
+    p /= p.sum(axis=0)
+    power = np.where((t > 1.0) & (t < 4.0), 1.0, np.where(t <= 1.0, 0.1, 1e-5))  # 0, -10, -50 dB
+    sig = Signature(time=t, velocity=v, p_vt=p, mean_velocity=np.zeros_like(t), range=np.zeros(0),
+                    range_distribution=np.zeros((0, t.size)), valid=np.ones(t.size, bool), power=power)
+    out = through_image(sig, glasgow_layout(5.0))
+    assert out.p_vt.shape == (317, 383) and out.time[0] < 0.02 and out.time[-1] > 4.98
+    shown = out.time < 4.0  # stretched over 0-5 s: the -50 dB part starts at 4.0 + 0.1 * (5 / 4.8) s
+    peaks = out.velocity[out.p_vt.argmax(axis=0)]
+    truth = np.where(out.time < 2.5, 1.0, -2.0)
+    assert np.all(np.abs(peaks[shown] - truth[shown]) <= 12 / 317 + 0.016)
+    assert not out.valid[out.time > 4.25].any() and out.p_vt[:, out.time > 4.25].sum() == 0
+    assert np.isfinite(out.p_vt).all()
+
+
+def test_image_layout_needs_glasgow_clip_lengths(tmp_path):
+    import yaml
+
+    from rtchannel.dataset.plan import PRESETS_DIR
+
+    plan = yaml.safe_load((PRESETS_DIR / "glasgow.yaml").read_text())
+    plan["motion"]["sources"] = [s for s in plan["motion"]["sources"] if "procedural" in s]
+    plan["motion"]["clip_s"] = {"walk": 10.0, "*": 6.0}
+    p = tmp_path / "g.yaml"
+    p.write_text(yaml.safe_dump(plan))
+    with pytest.raises(ValueError, match="clip_s must give .* a length of 5 or 10 s"):
+        load_plan(p)
+    plan["motion"]["clip_s"] = {"walk": 10.0, "*": 5.0}
+    p.write_text(yaml.safe_dump(plan))
+    assert load_plan(p).storage.image_layout == "glasgow"
