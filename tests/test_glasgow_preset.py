@@ -44,6 +44,8 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     assert sum(a == "walk" for a, _ in files) == 3
     # frontal falls only: generator seed = 0 (mod 3) is the forward fall
     assert all(it.motion["params"]["seed"] % 3 == 0 for it in items if it.activity == "fall")
+    # sit and stand get a chair on the mesh backends (the points backend is free space)
+    assert all(it.chair == "auto" for it in items)
 
 
 @pytest.mark.parametrize("activity, kind", [("walk", "procedural"), ("walk", "file"), ("stand", "file")])

@@ -115,6 +115,10 @@ def run_item(item: WorkItem) -> dict:
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        if item.backend != "points" and item.chair != "none":  # the points backend is free space
+            from rtchannel.scene.chair_fit import scene_for
+
+            options["scene"] = scene_for(motion, options.get("scene"), item.chair)
         result = simulate(motion, radar, backend=item.backend, keep_iq=item.keep_iq, noise_seed=item.seed,
                           iq_transform=signal_layer_on_iq if signal_layer else None, **options)
     for name, lr in result.links.items():

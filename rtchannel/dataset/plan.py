@@ -288,6 +288,8 @@ class Plan(_Model):
     seed: int = Field(0, ge=0, description="plan seed: every random draw derives from it")
     backend: str = Field("points", min_length=1)
     backend_options: dict[str, Any] = Field(default_factory=dict)
+    chair: Literal["auto", "none"] = Field("none", description="mesh backends: auto puts a chair under sit and "
+                                           "stand motions (rtchannel.scene.chair_fit.scene_for), as --chair auto")
     motion: MotionLayer
     physical: PhysicalLayer = Field(default_factory=PhysicalLayer)
     signal: SignalLayer = Field(default_factory=SignalLayer)
@@ -365,6 +367,7 @@ class WorkItem:
     clutter: dict | None
     keep_iq: bool
     image_layout: str | None = None
+    chair: str = "none"
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -462,6 +465,7 @@ def expand(plan: Plan) -> list[WorkItem]:
                         direction=direction, link_set=ls.name, backend=plan.backend,
                         backend_options=dict(plan.backend_options), gain_set=gs.model_dump(mode="json"),
                         snr_db=snr, clutter=None if cl is None else cl.model_dump(mode="json"),
-                        keep_iq=plan.storage.keep_iq, image_layout=plan.storage.image_layout))
+                        keep_iq=plan.storage.keep_iq, image_layout=plan.storage.image_layout,
+                        chair=plan.chair))
     items.sort(key=lambda it: it.item_id)
     return items
