@@ -61,7 +61,7 @@ def main(argv=None) -> None:
         sc.set_body(verts[k])
         solver = rt.PathSolver()
         for link in radar.links:
-            place_antennas(sc, [link])
+            place_antennas(sc, [link], radar)
             p = solver(sc.sionna_scene, max_depth=1, samples_per_src=args.rays, max_num_paths_per_src=args.rays,
                        los=False, specular_reflection=True, diffuse_reflection=True, refraction=False)
             for arr in (p.a[0], p.a[1], p.tau, p.objects, p.primitives, p.vertices, p.interactions):

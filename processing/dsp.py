@@ -36,12 +36,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from scipy.signal import get_window
 
 from processing.dsp_config import DEFAULT_MTI_CUTOFF_MPS, GLASGOW_DSP, DSPConfig
 from processing.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
 from processing.mti import mti_filter
 from processing.waveform import C0, Waveform
+from processing.windows import get_window
 
 __all__ = ["DEFAULT_MTI_CUTOFF_MPS", "DSPConfig", "GLASGOW_DSP", "Projection", "Signature", "mean_velocity",
            "project", "signatures", "signatures_from_projection"]

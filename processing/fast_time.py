@@ -30,9 +30,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import get_window
 
 from processing.waveform import Waveform
+from processing.windows import get_window
 
 
 @dataclass

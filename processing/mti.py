@@ -42,7 +42,6 @@ chirps either side, the whole-recording mean in every window.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, sosfilt, sosfilt_zi, sosfiltfilt
 
 from processing.waveform import C0
 
@@ -65,6 +64,8 @@ def moving_average_length(fc_hz: float, prf_hz: float) -> int:
 
 def butterworth_sos(order: int, fc_hz: float, prf_hz: float) -> np.ndarray:
     """Second-order sections of the Butterworth high-pass (-3 dB at fc_hz) at sample rate prf_hz."""
+    from scipy.signal import butter  # only here: scipy.signal costs ~0.3 s to import, the default MTI needs none
+
     return butter(order, fc_hz, btype="highpass", fs=prf_hz, output="sos")
 
 
@@ -102,6 +103,8 @@ def mti_filter(x: np.ndarray, prf_hz: float, carrier_hz: float, cfg) -> np.ndarr
         lo, hi = np.maximum(n - half, 0), np.minimum(n + half + 1, x.shape[0])
         count = (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
         return x - (c[hi] - c[lo]) / count
+    from scipy.signal import sosfilt, sosfilt_zi, sosfiltfilt
+
     sos = butterworth_sos(cfg.mti_order, fc, prf_hz)
     if cfg.mti_zero_phase:
         pad = min(3 * (2 * sos.shape[0] + 1), x.shape[0] - 1)  # scipy's default, shortened for short records
@@ -125,6 +128,8 @@ def settling_time_s(cfg, prf_hz: float, carrier_hz: float, level_db: float = -40
     _check_cutoff(fc, prf_hz)
     if kind == "moving_average":
         return (moving_average_length(fc, prf_hz) // 2 + 1) / prf_hz
+    from scipy.signal import sosfilt
+
     sos = butterworth_sos(cfg.mti_order, fc, prf_hz)
     n = int(np.ceil(200 * prf_hz / fc))  # 200 cut-off periods: far beyond any Butterworth's settling
     step = sosfilt(sos, np.ones(n))

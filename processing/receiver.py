@@ -47,10 +47,10 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
-from scipy.signal import get_window
 
 from processing.antenna import AntennaPattern, GaussianBeam, YagiBeam
 from processing.waveform import C0, Waveform
+from processing.windows import get_window
 
 K_BOLTZMANN = 1.380649e-23  # J/K (exact, SI 2019)
 T0_K = 290.0  # reference temperature of the noise figure (IEEE)

@@ -9,6 +9,8 @@ The public API (few nouns, one `simulate`)::
     result = simulate(motion, radar, backend="facets", scene=Scene.room())
     result.signatures["radar1"].p_vt                              # p(v, t), eq. 7
     result.save("out/signature.h5"); result.plot("out/")
+    results = simulate_radars(motion, [Radar.seed(direction=d) for d in range(1, 19)], backend="facets")
+                                                                  # 18 directions, body traced once per frame
 
 Names are imported on first use, so `import rtchannel` stays cheap (and works before the
 dependencies are installed, which the Makefile's LLVM check relies on).
@@ -21,6 +23,7 @@ _EXPORTS = {
     "Link": ("rtchannel.radar", "Link"),
     "Scene": ("rtchannel.scene.spec", "Scene"),
     "simulate": ("rtchannel.pipeline", "simulate"),
+    "simulate_radars": ("rtchannel.pipeline", "simulate_radars"),
     "SimulationResult": ("rtchannel.pipeline", "SimulationResult"),
     "Waveform": ("processing.waveform", "Waveform"),
     "DSPConfig": ("processing.dsp", "DSPConfig"),

@@ -6,7 +6,8 @@ Every one of them carries a one-line message naming the file and line/field at f
 * `processing.errors.InputError` (a ValueError) and its subclasses:
   `MotionImportError` (BVH/C3D files), `AncortekFormatError` (`.dat` recordings), `CheckpointError`,
   `TrainingError`, `DatasetFormatError` (index/plan/shards), `PlanMismatchError`, `ConfigError`
-  (radar/plan/option files and values), `SceneFileError` (scene XML sandbox and Mitsuba load errors);
+  (radar/plan/option files and values), `SceneFileError` (scene XML sandbox and Mitsuba load errors),
+  `RadarPlacementError` (an antenna inside or touching the scene or the body);
 * pydantic's `ValidationError` (a configuration field out of range; the CLI names the first field).
 
 Import-light on purpose (no numpy/torch/h5py): the CLI imports it before any command runs.
@@ -26,7 +27,11 @@ class SceneFileError(InputError):
     """A scene file outside the sandbox, malformed, or rejected by Mitsuba (message never quotes file content)."""
 
 
+class RadarPlacementError(InputError):
+    """An antenna is too close to (or inside) scene geometry or the body."""
+
+
 USER_ERRORS: tuple[type[BaseException], ...] = (InputError, ValidationError)
 
-__all__ = ["USER_ERRORS", "InputError", "ConfigError", "SceneFileError", "CheckpointError", "TrainingError",
-           "DatasetFormatError"]
+__all__ = ["USER_ERRORS", "InputError", "ConfigError", "SceneFileError", "RadarPlacementError", "CheckpointError",
+           "TrainingError", "DatasetFormatError"]

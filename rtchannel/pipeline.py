@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -185,3 +185,66 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
               "backend": backend, "backend_options": options, "synthesis": synthesis, "noise_seed": noise_seed,
               "iq_unit": "sqrt(W) at the ADC" if radar.receiver is not None else "sqrt(transmit power)"}
     return SimulationResult(links=links, timing=timing, config=config)
+
+
+def union_radar(radars) -> RadarConfig:
+    """One radar holding every link of `radars` (names prefixed ``r<i>__``, each with its antennas made
+    explicit), so that a backend can trace all antenna positions against one skinned body per frame."""
+    first = radars[0]
+    for r in radars[1:]:
+        if r.waveform != first.waveform:
+            raise ValueError("radars traced together must share one waveform (carrier and wavelength)")
+    links = []
+    for i, r in enumerate(radars):
+        for lk in r.links:
+            tx_ant, rx_ant = r.antennas(lk)
+            links.append(lk.model_copy(update={"name": f"r{i}__{lk.name}", "tx_antenna": tx_ant,
+                                               "rx_antenna": rx_ant}))
+    return first.model_copy(update={"links": links})
+
+
+def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=None, keep_iq: bool = False,
+                    synthesis: str = "auto", iq_transforms=None, noise_seeds=None,
+                    **backend_options) -> list[SimulationResult]:
+    """`simulate` for several radars (e.g. one motion seen from the seed's 18 directions) with the backend
+    run once: the body is skinned (and, for the mesh backends, its BVH built) once per frame and every
+    antenna of every radar is traced against it; walls stay fixed, the radars move. Synthesis, receiver
+    noise and DSP then run per radar exactly as `simulate` does, so each result equals
+    `simulate(motion, radars[i], ..., noise_seed=noise_seeds[i], iq_transform=iq_transforms[i])`.
+
+    Args:
+        radars: RadarConfigs sharing one waveform (their DSP, receivers and antennas may differ).
+        iq_transforms, noise_seeds: one per radar (default None / the motion's seed).
+        Others: as `simulate`. The shared backend time is split evenly over the results' ``timing``.
+    """
+    radars = list(radars)
+    if not radars:
+        return []
+    n = len(radars)
+    iq_transforms = [None] * n if iq_transforms is None else list(iq_transforms)
+    noise_seeds = [None] * n if noise_seeds is None else list(noise_seeds)
+    if len(iq_transforms) != n or len(noise_seeds) != n:
+        raise ValueError("iq_transforms and noise_seeds need one entry per radar")
+    for r in radars:
+        check_recording(motion.duration, r.waveform, r.dsp, len(r.links), keep_iq)
+    union = union_radar(radars)
+    if scene is not None and backend in MESH_BACKENDS:
+        backend_options["scene"] = scene
+    t0 = time.perf_counter()
+    paths = backend_paths(motion, union, backend, **backend_options)
+    shared = (time.perf_counter() - t0) / n
+    options = {k: (v.describe() if hasattr(v, "describe") else v) for k, v in backend_options.items()
+               if k not in ("timing", "stats")}
+    results = []
+    for i, r in enumerate(radars):
+        mine = {lk.name: replace(paths[f"r{i}__{lk.name}"], link=lk.name) for lk in r.links}
+        seed = int(motion.params.get("seed", 0) or 0) if noise_seeds[i] is None else noise_seeds[i]
+        timing = {"backend": shared}
+        links = process_paths(mine, r, keep_iq=keep_iq, timing=timing, synthesis=synthesis,
+                              iq_transform=iq_transforms[i], noise_seed=seed)
+        config = {"activity": motion.activity, "motion": motion.params, "radar": r.model_dump(mode="json"),
+                  "backend": backend, "backend_options": options, "synthesis": synthesis, "noise_seed": seed,
+                  "iq_unit": "sqrt(W) at the ADC" if r.receiver is not None else "sqrt(transmit power)",
+                  "traced_with_radars": n}
+        results.append(SimulationResult(links=links, timing=timing, config=config))
+    return results

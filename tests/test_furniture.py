@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from processing.antenna import Isotropic
 from processing.pathset import PathSet
 from processing.signature_file import read_signature_file
 from processing.waveform import C0
@@ -320,10 +321,14 @@ def test_static_chair_return_is_removed_by_the_mti(sit):
     from rtchannel.pipeline import process_paths
 
     scene = Scene.room().with_chair_for(sit)
-    radar = Radar.monostatic((-3.0, 0.0, 1.1))
+    # Unit-gain antennas: the ~12 dB above is the RCS contrast (with the default horns, which weight chair
+    # and body by their own directions, the zero-velocity bin without MTI measured 0.88 instead).
+    radar = Radar.monostatic((-3.0, 0.0, 1.1), antenna=Isotropic())
     ps = facet_paths(sit, radar, scene=scene, lod="2k")["radar1"]
-    r = float(np.linalg.norm(scene.furniture[0].to_world([-0.19, 0.0, 0.75]) - radar.links[0].tx_pos))
+    back = scene.furniture[0].to_world([-0.19, 0.0, 0.75])
+    r = float(np.linalg.norm(back - radar.links[0].tx_pos))
     a = radar.waveform.wavelength / ((4 * np.pi) ** 1.5 * r ** 2)  # sigma = 1 m^2, |a|^2 = Pr/Pt
+    a *= float(radar.link_gain(radar.links[0], np.asarray(back)))  # the horns see the chair too, like the body
     k = ps.n_frames
     with_chair = PathSet(ps.times, np.column_stack([ps.delays, np.full(k, 2 * r / C0)]),
                          np.column_stack([ps.gains, np.full(k, a, complex)]), np.r_[ps.ids, ps.ids.max() + 1],

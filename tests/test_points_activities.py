@@ -97,3 +97,18 @@ def test_iq_transform_acts_before_dsp_and_on_kept_iq():
     assert late.sum() > 10 and not cut.signature.valid[late].any()
     assert np.abs(cut.signature.mean_velocity[late]).max() < 1e-6
     assert np.abs(plain.signature.mean_velocity[late]).max() > 0.05
+
+
+def test_antenna_inside_the_body_is_refused():
+    """An antenna at the pelvis of a standing person is inside the body: one-line RadarPlacementError naming
+    the link and time; 0.5 m in front of the chest (>= 0.15 m from every scatterer) is accepted."""
+    from rtchannel.errors import RadarPlacementError, USER_ERRORS
+
+    m = generate("stand", height=1.75)
+    pelvis = m.positions[0, JOINT_INDEX["Hips"]]  # global joint positions [F, J, 3]
+    inside = RadarConfig(links=[Link(name="mono", tx=tuple(float(x) for x in pelvis))])
+    with pytest.raises(RadarPlacementError, match=r"link 'mono': the transmitter .* cm from body scatterer") as e:
+        point_paths(m, inside)
+    assert isinstance(e.value, USER_ERRORS) and "\n" not in str(e.value)
+    d = np.linalg.norm(point_paths(m, RadarConfig.monostatic((3, 0, 1.1)))["radar1"].delays, axis=-1)
+    assert np.isfinite(d).all()

@@ -24,6 +24,9 @@ from processing.errors import CheckpointError, one_line
 
 CHECKPOINT_VERSION = 1
 MAX_CHECKPOINT_BYTES = 1 << 30  # the largest allowed network (5e7 float32 parameters) is 0.2 GB
+# Preprocessing fields added after checkpoints were already written, with the value that reproduces what
+# those models were trained on (a missing field must not silently switch an old model to new behaviour).
+LEGACY_PREPROCESS = {"active_valid_only": False}
 _REQUIRED = {"version": int, "model_config": dict, "preprocess": dict, "classes": list, "links": list,
              "state_dict": dict}
 
@@ -121,7 +124,7 @@ def load_checkpoint(path: str | Path):
             raise CheckpointError(f"{path}: {'missing' if key not in blob else 'invalid'} field {key!r} "
                                   f"(expected {typ.__name__})")
     cfg = _config(path, ModelConfig, blob["model_config"], "model_config")  # bounds sizes before allocating
-    pre = _config(path, PreprocessConfig, blob["preprocess"], "preprocess")
+    pre = _config(path, PreprocessConfig, {**LEGACY_PREPROCESS, **blob["preprocess"]}, "preprocess")
     if (pre.n_velocity, pre.n_time) != tuple(cfg.input_size):
         raise CheckpointError(f"{path}: preprocess makes {pre.n_velocity} x {pre.n_time} images but the network "
                               f"takes {cfg.input_size[0]} x {cfg.input_size[1]}")

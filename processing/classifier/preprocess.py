@@ -16,7 +16,10 @@ one radar should accept another radar's recordings, so the input is built on *ph
    `time_mode="active"` (default) first crops the recording to its active span (time bins whose motion, the
    p-weighted distance from zero velocity, exceeds `active_fraction` of its peak, plus `active_margin_s`
    either side), then rebins that: standing still before and after an activity (a 14 s mocap take that
-   walks for 4 s) no longer decides the image's time scale.
+   walks for 4 s) no longer decides the image's time scale. With `active_valid_only` (default for new
+   models) only time bins marked valid (carrying signal above the noise, `Signature.valid`) can be
+   active: a noise-only column's p(v,t) is spread evenly over v, so its p-weighted |v| is about a
+   quarter of the axis and would mark the whole recording active.
 3. Scale: `scale="db"` (default) takes 10 log10 p, clips it `floor_db` below the sample's maximum and
    maps [max - floor_db, max] to [0, 1] (per-sample normalisation: the received power level carries
    range and body size, not activity); `scale="linear"` divides by the sample's maximum.
@@ -48,6 +51,9 @@ class PreprocessConfig(BaseModel):
     time_mode: Literal["resample", "window", "active"] = Field("active", description="how T becomes n_time")
     active_fraction: float = Field(0.1, gt=0, lt=1, description="time_mode='active': motion threshold re peak")
     active_margin_s: float = Field(0.25, ge=0, le=600, description="time_mode='active': kept either side [s]")
+    # checkpoints written before this field existed load with False (see checkpoint.LEGACY_PREPROCESS)
+    active_valid_only: bool = Field(True, description="time_mode='active': only valid (above-noise) time bins "
+                                    "can be active, when the sample has a `valid` mask")
     # bounded like a motion (MAX_DURATION_S): the window is allocated as window_s / dt columns
     window_s: float = Field(6.0, gt=0, le=3600, description="time span of time_mode='window' [s]")
     scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
@@ -91,9 +97,12 @@ def _motion(p_vt: np.ndarray) -> np.ndarray:
     return np.where(total > 0, (p_vt * v_idx[:, None]).sum(axis=0) / np.where(total > 0, total, 1.0), 0.0)
 
 
-def _active_span(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig) -> np.ndarray:
+def _active_span(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig,
+                 valid: np.ndarray | None = None) -> np.ndarray:
     dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
     motion = _motion(p_vt)
+    if valid is not None and cfg.active_valid_only:
+        motion = np.where(valid, motion, 0.0)
     if motion.max() <= 0:
         return p_vt
     on = np.flatnonzero(motion >= cfg.active_fraction * motion.max())
@@ -121,7 +130,7 @@ def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfi
 
 
 def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.ndarray | None = None,
-               cfg: PreprocessConfig = PreprocessConfig()) -> np.ndarray:
+               cfg: PreprocessConfig = PreprocessConfig(), valid: np.ndarray | None = None) -> np.ndarray:
     """One fixed-size input image [n_velocity, n_time] (float32, values in [0, 1]) from p(v,t) [V, T].
 
     Args:
@@ -129,16 +138,22 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
         velocity: its velocity axis [V] in m/s (needed for `v_range_mps`; None: bins taken as they are).
         time: its time axis [T] in s (needed for `time_mode='window'`; None: 16 ms bins assumed).
         cfg: the preprocessing settings.
+        valid: [T] bool, time bins carrying signal above the noise (`Signature.valid`); with
+            `cfg.active_valid_only` only these can be active. None: every bin may be.
     """
     p = np.nan_to_num(np.asarray(p_vt, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     if p.ndim != 2 or p.shape[1] == 0:
         raise ValueError(f"p_vt must be a non-empty [V, T] array, got shape {p.shape}")
     p = np.maximum(p, 0.0)
+    if valid is not None:
+        valid = np.asarray(valid, dtype=bool).reshape(-1)
+        if valid.size != p.shape[1]:
+            raise ValueError(f"valid has {valid.size} time bins, p_vt {p.shape[1]}")
     p = _velocity_grid(p, velocity, cfg)
     if cfg.time_mode == "window":
         p = _time_window(p, time, cfg)
     elif cfg.time_mode == "active":
-        p = _active_span(p, time, cfg)
+        p = _active_span(p, time, cfg, valid)
     p = _resample_axis(p, cfg.n_time, axis=1)
     peak = p.max()
     if peak <= 0:
@@ -150,9 +165,10 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
 
 
 def preprocess_links(links: dict[str, dict], names, cfg: PreprocessConfig) -> np.ndarray:
-    """Stacked inputs [len(names), n_velocity, n_time] from {link: {"p_vt", "velocity", "time"}}."""
+    """Stacked inputs [len(names), n_velocity, n_time] from {link: {"p_vt", "velocity", "time", ("valid")}}."""
     missing = [n for n in names if n not in links]
     if missing:
         raise ValueError(f"sample has no link {missing[0]!r} (has {', '.join(links)})")
-    return np.stack([preprocess(links[n]["p_vt"], links[n].get("velocity"), links[n].get("time"), cfg)
+    return np.stack([preprocess(links[n]["p_vt"], links[n].get("velocity"), links[n].get("time"), cfg,
+                                links[n].get("valid"))
                      for n in names])

@@ -37,16 +37,19 @@ def double_kind(w_tx: int, w_rx: int, n_walls: int) -> int:
 
 
 def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, material, wavelength, po,
-               phases=None, direct_paths: bool = True, image_paths: bool = True, double=()) -> list[dict]:
+               phases=None, direct_paths: bool = True, image_paths: bool = True, double=(),
+               antennas=None) -> list[dict]:
     """Per link {kind: (slot [N], facet [N], gain [N] complex)} of one batch of traced frames.
 
     vis: `visibility.BatchVisibility` of the batch; slot0: slot of its first frame; cent, norm [B, F, 3],
     area [B, F]: facet geometry; corners_of(b, f): [N, 3, 3] corners (used with `po`); phases: diffuse
     phase factors [F] of this mesh or None; double: (tx wall, rx wall) index pairs of the double-bounce
-    paths to form."""
+    paths to form; antennas: per link (tx pattern, rx pattern) or None for isotropic antennas (see
+    `antenna_targets`; None for every link when not given)."""
     n_w = len(walls)
+    antennas = [None] * len(pairs) if antennas is None else antennas
     out = []
-    for s_tx, s_rx in pairs:
+    for (s_tx, s_rx), pattern in zip(pairs, antennas):
         tx, rx = sources[s_tx], sources[s_rx]
         mono = s_tx == s_rx
         fams = []  # (kind, b, f, p_a, p_b, [(wall, cos_w, antenna)], monostatic twin to add)
@@ -86,10 +89,25 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, 
             corners = corners_of(b, f) if po else None
             ph = None if phases is None else phases[f]  # the facet's own surface phase on every path
             g = facet_gains(material, wavelength, c, n, a, corners, p_a, p_b, po, ph)
+            if pattern is not None:  # isotropic links skip this: their gains stay bit-identical
+                at_tx, at_rx = antenna_targets([(fam[0], k) for fam, k in zip(fams, sizes)], c, walls)
+                same = pattern[0] == pattern[1]  # monostatic: the same antenna at the same place
+                amp_tx = antenna_gain(pattern[0], tx, at_tx)
+                if mono and same:  # evaluate the receiver only where it looks elsewhere (image kinds)
+                    amp_rx = amp_tx.copy()
+                    d = np.flatnonzero(np.any(at_rx != at_tx, axis=1))
+                    amp_rx[d] = antenna_gain(pattern[1], rx, at_rx[d])
+                else:
+                    amp_rx = antenna_gain(pattern[1], rx, at_rx)
+                g *= amp_tx * amp_rx
             if twin.any():  # monostatic: add the reverse path (same delay and visibility)
                 t = np.flatnonzero(twin)
-                g[t] += facet_gains(material, wavelength, c[t], n[t], a[t], None if corners is None else corners[t],
+                g_rev = facet_gains(material, wavelength, c[t], n[t], a[t], None if corners is None else corners[t],
                                     p_b[t], p_a[t], po, None if ph is None else ph[t])
+                if pattern is not None:  # reversed, the transmitter sees the receiver's target and vice versa
+                    g_rev *= (amp_tx[t] * amp_rx[t] if same else  # same antenna and place: symmetric
+                              antenna_gain(pattern[0], tx, at_rx[t]) * antenna_gain(pattern[1], rx, at_tx[t]))
+                g[t] += g_rev
             at = 0
             for (kind, bk, fk, _, _, via, _), k in zip(fams, sizes):
                 gk = g[at:at + k]
@@ -101,6 +119,33 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, 
                 at += k
         out.append(found)
     return out
+
+
+def antenna_targets(kinds_sizes, cent, walls) -> tuple[np.ndarray, np.ndarray]:
+    """Points [N, 3] (m) towards which each path leaves the transmitter and from which it reaches the
+    receiver, for paths grouped in runs of (kind, count) over centroids `cent` [N, 3]: the centroid itself,
+    or for an antenna mirrored in wall w the centroid's mirror image in w. (The reflection point lies on
+    the segment antenna -> mirrored centroid, so the antenna sees the path in that direction; see
+    `processing.antenna`.)"""
+    at_tx, at_rx = cent, cent  # shared until an image kind needs its own copy
+    at = 0
+    for kind, k in kinds_sizes:
+        w_tx, w_rx = kind_walls(int(kind), len(walls))
+        if w_tx >= 0:
+            at_tx = at_tx.copy() if at_tx is cent else at_tx
+            at_tx[at:at + k] = mirror(cent[at:at + k], walls[w_tx])
+        if w_rx >= 0:
+            at_rx = at_rx.copy() if at_rx is cent else at_rx
+            at_rx[at:at + k] = mirror(cent[at:at + k], walls[w_rx])
+        at += k
+    return at_tx, at_rx
+
+
+def antenna_gain(spec, position, targets) -> np.ndarray:
+    """Amplitude factor sqrt(G) [N] of `spec` at `position` [3] towards `targets` [N, 3] (m); 1 for None."""
+    from processing.antenna import gain
+
+    return np.ones(len(targets)) if spec is None else gain(spec, position, targets)
 
 
 def merge_batches(batches: list[list[dict]], n_links: int) -> list[dict]:

@@ -25,6 +25,16 @@ power, so leaving it out underestimates the body (mean walk RCS about -8 instead
 `rcs.walk_body_rcs`). Image paths are multiplied by the wall's co-polar slab reflection coefficient at
 each reflection point.
 
+Antennas (`LinkSpec.tx_antenna`, `rx_antenna`; `facet_paths` takes the radar's, `RadarConfig.antennas`):
+every path is multiplied by sqrt(G_tx(u_tx)) sqrt(G_rx(u_rx)) (`processing.antenna.gain`), u the direction
+from the antenna towards the facet centroid, or, for an antenna mirrored in wall w, towards the centroid's
+mirror image in w (the reflection point lies on that line); the merged monostatic twins get their own
+factors. Like the rest of the gain it is evaluated at the traced frames and interpolated in between (the
+trunk at 2 m moving 1 m/s turns 3 deg per 0.1 s: the linear interpolation error of a 30-deg Gaussian beam's
+amplitude exp(-2 ln2 psi^2 / HPBW^2) is at most (3 deg)^2 / 8 x 4 ln2 / (30 deg)^2 = 0.35 % per antenna;
+fast limbs err more, like the rest of the interpolated gain; ``trace_fps=None`` evaluates every frame).
+Both antennas isotropic: no factor at all (gains bit-identical to the unit-gain scale).
+
 Diffuse phase (``seed``, default 0; None: none): a rough surface's diffuse field has a random phase per
 resolution cell, fixed while the cell moves with the skin. Each facet gets one uniform phase
 (`surface_scattering.diffuse_phases`, seeded by (seed, F)), the same in every frame (Doppler stays
@@ -69,11 +79,19 @@ from rtchannel.body.skinning import face_normals_and_areas
 
 @dataclass(frozen=True)
 class LinkSpec:
-    """A radar link by name and antenna positions [3] (m)."""
+    """A radar link by name, antenna positions [3] (m) and antenna patterns (`processing.antenna` specs;
+    None: isotropic, the backends' native unit-gain scale)."""
 
     name: str
     tx: np.ndarray
     rx: np.ndarray
+    tx_antenna: object = None
+    rx_antenna: object = None
+
+    def antennas(self):
+        """(tx, rx) patterns, or None when both are isotropic (no factor at all: bit-identical gains)."""
+        kinds = {getattr(a, "kind", "isotropic") for a in (self.tx_antenna, self.rx_antenna)}
+        return None if kinds == {"isotropic"} else (self.tx_antenna, self.rx_antenna)
 
 
 # Fast defaults (benchmarks/bench_facets.py; error cost in `rtchannel.analysis.speed_error`): visibility and gains
@@ -132,7 +150,8 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         scene: `rtchannel.scene.rt_scene.RTScene` holding this mesh as its body (``set_body``, ray casts).
         times: frame times [K] (s). vertices: [K, V, 3] (m). faces: [F, 3].
         velocities: vertex velocities [K, V, 3] (m/s) for analytic delay rates, or None.
-        links: radar links. wavelength: carrier wavelength [m]. material: the mesh's surface material.
+        links: radar links (`LinkSpec`: positions and antenna patterns). wavelength: carrier wavelength [m].
+            material: the mesh's surface material.
         trace_idx: frames at which visibility and gains are evaluated (default all).
         walls: planar walls for image paths (empty: no body-wall multipath).
         po: add the physical-optics term. min_relative_gain_db: drop paths whose peak |gain| is more
@@ -178,11 +197,12 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
             raise ValueError(f"the image mesh has more faces ({len(f_c)}) than the mesh ({len(faces)})")
         meshes.append((np.asarray(v_c, float), np.asarray(f_c, np.int64), vel_c, False, True))
     double = double_bounce_pairs(double_bounce, walls)
+    antennas = [link.antennas() for link in links]
     parts = []
     for verts, fcs, vels, direct_paths, image_paths in meshes:
         found = _trace(scene, verts, fcs, trace_idx, sources, pairs, walls if image_paths else [], material,
                        wavelength, po, batch_frames, direct_paths, clock, progress, diffuse_phases(seed, len(fcs)),
-                       double if image_paths else [])
+                       double if image_paths else [], antennas)
         parts.append((found, verts, vels, fcs))
     out = {link.name: assemble([(p[0][li],) + p[1:] for p in parts], link.name, sources[pairs[li][0]],
                                sources[pairs[li][1]], walls, times, trace_idx, len(faces), min_relative_gain_db)
@@ -216,7 +236,7 @@ def double_bounce_pairs(double_bounce: bool | str | None, walls) -> list[tuple[i
 
 
 def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, wavelength, po, batch_frames,
-           direct_paths, clock, progress, phases, double) -> list[dict]:
+           direct_paths, clock, progress, phases, double, antennas) -> list[dict]:
     """Visibility and gains at the traced frames of one mesh, batch by batch (one BVH build each)."""
     caster = caster_for(scene, faces, vertices, sources, min(batch_frames, len(trace_idx)))
     batches = []
@@ -233,7 +253,7 @@ def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, w
         clock("rays")
         batches.append(link_gains(vis, pairs, sources, walls, start, cent, normals, areas,
                                   lambda b, f: corners[b, f], material, wavelength, po, phases,
-                                  direct_paths, double=double))
+                                  direct_paths, double=double, antennas=antennas))
         clock("gains")
         if progress is not None:
             progress(start + len(frames))
@@ -324,7 +344,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         v_c, vel_c = skin(coarse)
         image_mesh = (v_c, coarse.faces, vel_c)
     timing["skinning"] = timing.get("skinning", 0.0) + time.perf_counter() - t0
-    links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos) for lk in radar.links]
+    links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
     material = SurfaceMaterial.from_skin(rt.skin, wf.carrier_hz)
     return mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material,
                       trace_frame_indices(motion.n_frames, motion.fps, trace_fps),
@@ -342,7 +362,7 @@ def rcs_backend(skin=None, po: bool = True, seed: int | None = 0):
     def run(vertices, faces, radar):
         wf = radar.waveform
         scene = RTScene("free_space", faces, vertices, wf.carrier_hz, skin)
-        links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos) for lk in radar.links]
+        links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
         v = np.stack([vertices, vertices])
         return mesh_paths(scene, np.array([0.0, 0.1]), v, faces, None, links, wf.wavelength,
                           SurfaceMaterial.from_skin(scene.skin, wf.carrier_hz), po=po, seed=seed)

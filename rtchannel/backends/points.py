@@ -20,6 +20,7 @@ from processing.waveform import C0
 from rtchannel.radar import RadarConfig
 from rtchannel.body.scatterers import PointScatterers, seed_scatterers
 from rtchannel.body.skeleton import Motion
+from rtchannel.errors import RadarPlacementError
 
 
 def link_delays(points: np.ndarray, tx: np.ndarray, rx: np.ndarray) -> np.ndarray:
@@ -42,11 +43,28 @@ def scatterer_trajectories(motion: Motion, scatterers: PointScatterers | None = 
 # band, about -5..0 dBsm (e.g. Yamada et al., IEEE VTC 2005, 76 GHz: -8..-3 dBsm).
 BODY_RCS_M2 = 0.49
 
+# The 21 scatterers sit on the skeleton, inside the body: the skin lies up to ~0.12 m from them (half the
+# chest's depth; limbs 0.04-0.07 m). An antenna nearer than this to any of them is inside or touching the
+# body, where the point model (and its 1/r^2 amplitude) means nothing.
+MIN_SCATTERER_CLEARANCE_M = 0.15
+
 
 def radar_amplitude(sigma, r_tx, r_rx, wavelength: float):
     """Path coefficient a (|a|^2 = P_r/P_t, isotropic unit-gain antennas) of a target of RCS sigma [m^2]
     at distances r_tx, r_rx [m] from transmitter and receiver: lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx)."""
     return wavelength * np.sqrt(sigma) / ((4 * np.pi) ** 1.5 * np.asarray(r_tx) * np.asarray(r_rx))
+
+
+def _check_clearance(traj: np.ndarray, times: np.ndarray, link) -> None:
+    """RadarPlacementError when an antenna of `link` comes within MIN_SCATTERER_CLEARANCE_M of a scatterer."""
+    for which, pos in (("transmitter", link.tx_pos), ("receiver", link.rx_pos)):
+        d = np.linalg.norm(traj - pos, axis=-1)
+        k, m = np.unravel_index(int(np.argmin(d)), d.shape)
+        if d[k, m] < MIN_SCATTERER_CLEARANCE_M:
+            raise RadarPlacementError(
+                f"link '{link.name}': the {which} at ({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m is "
+                f"{d[k, m] * 100:.1f} cm from body scatterer {m} at t = {times[k]:.2f} s: inside or touching the "
+                f"body (minimum {MIN_SCATTERER_CLEARANCE_M * 100:g} cm)")
 
 
 def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = None,
@@ -76,6 +94,7 @@ def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = N
         raise ValueError(f"points gain scale must be 'radar' or 'seed', got {scale!r}")
     out = {}
     for link in radar.links:
+        _check_clearance(traj, motion.times, link)
         r_tx = np.linalg.norm(traj - link.tx_pos, axis=-1)
         r_rx = np.linalg.norm(traj - link.rx_pos, axis=-1)
         tau = (r_tx + r_rx) / C0

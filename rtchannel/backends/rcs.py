@@ -71,7 +71,7 @@ def monostatic_rcs(backend: BackendFn, vertices: np.ndarray, faces: np.ndarray, 
     az = np.deg2rad(azimuth_deg)
     c = np.asarray(centre, float)
     tx = c + distance * np.array([np.cos(az), np.sin(az), 0.0])
-    radar = RadarConfig(links=[Link(name="rcs", tx=tuple(map(float, tx)))])
+    radar = RadarConfig(links=[Link(name="rcs", tx=tuple(map(float, tx)))], antenna=Isotropic())  # RCS: unit gain
     radar = radar.model_copy(update={"waveform": radar.waveform.model_copy(update={"carrier_hz": frequency_hz})})
     ps = backend(np.asarray(vertices, float) + c, np.asarray(faces), radar)["rcs"]
     lam = C0 / frequency_hz

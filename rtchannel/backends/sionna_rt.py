@@ -6,10 +6,12 @@ once (all transmitters are sources, all receivers targets: two monostatic radars
 
 Choices (measured numbers in scenes/README.md):
 
-- Antennas: one isotropic ("iso") element, vertical polarisation, at both ends of every link; so
-  Sionna's path coefficient a satisfies |a|^2 = P_r / P_t with unit-gain antennas, i.e. it includes
-  the lambda / (4 pi) spreading of the Friis/radar equation. This is the common gain scale of all
-  backends (points: a = lambda sqrt(sigma) / ((4 pi)^1.5 R_tx R_rx)).
+- Antennas: the radar's patterns (`RadarConfig.antennas`) as Sionna RT arrays, vertical polarisation,
+  each transmitter/receiver oriented by its boresight (`rtchannel.backends.sionna_antennas`); Sionna's
+  path coefficient a then satisfies |a|^2 = G_tx G_rx P_r / P_t, where P_r / P_t is the unit-gain
+  value that includes the lambda / (4 pi) spreading of the Friis/radar equation. Isotropic antennas
+  give exactly that unit-gain value, the common gain scale of all backends (points: a = lambda
+  sqrt(sigma) / ((4 pi)^1.5 R_tx R_rx)).
 - ``los=False`` always: a co-located transmitter/receiver pair would otherwise get a huge direct path,
   and in bistatic links the direct path is static anyway.
 - Static paths (no interaction with the body: wall/floor reflections between the antennas) are
@@ -44,6 +46,7 @@ import numpy as np
 
 from processing.pathset import PathSet
 from processing.waveform import C0
+from rtchannel.backends.sionna_antennas import link_groups, place_antennas
 from rtchannel.radar import RadarConfig
 from rtchannel.scene.rt_scene import BODY_ID, RTScene, SkinMaterial, get_scene
 from rtchannel.body.skeleton import Motion
@@ -117,34 +120,6 @@ def _tracer(scene: RTScene, deterministic: bool) -> _Tracer:
     return _TRACERS[key]
 
 
-def place_antennas(scene: RTScene, links) -> tuple[dict[str, tuple[int, int]], np.ndarray]:
-    """Put one iso, V-polarised transmitter per distinct tx position and receiver per rx position.
-
-    Returns ({link name: (source index, target index)}, all antenna positions [N, 3]).
-    """
-    import mitsuba as mi
-    import sionna.rt as rt
-
-    s = scene.sionna_scene
-    for name in list(s.transmitters) + list(s.receivers):
-        s.remove(name)
-    s.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
-    s.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
-    txs: list[tuple] = []
-    rxs: list[tuple] = []
-    index = {}
-    for link in links:
-        t, r = tuple(map(float, link.tx_pos)), tuple(map(float, link.rx_pos))
-        if t not in txs:
-            txs.append(t)
-            s.add(rt.Transmitter(name=f"tx{len(txs) - 1}", position=mi.Point3f(*t)))
-        if r not in rxs:
-            rxs.append(r)
-            s.add(rt.Receiver(name=f"rx{len(rxs) - 1}", position=mi.Point3f(*r)))
-        index[link.name] = (txs.index(t), rxs.index(r))
-    return index, np.array(txs + rxs, dtype=float)
-
-
 def _velocity_at(points, prims, types, verts, vels, faces) -> np.ndarray:
     """Material velocity [M, 3] of body interaction points: barycentric blend in the hit triangle
     (diffraction points, whose primitive is an edge, take the nearest vertex's velocity)."""
@@ -215,13 +190,15 @@ def sionna_paths(motion: Motion, radar: RadarConfig, scene: str = "room", lod: s
         seed: ray-sampling seed, the same every frame (the sampling pattern moves coherently).
         deterministic: Sionna's deterministic candidate generator (reproducible bit for bit).
         pad_bucket: candidate counts are padded to a multiple of this (0 disables padding).
-        joint_links: trace all links in one solver call (False: one call per link, for benchmarks).
+        joint_links: trace all links in one solver call per antenna-shape group (one call for the seed kit;
+            False: one call per link, for benchmarks).
         max_num_paths_per_src: Sionna's candidate buffer size per source.
         progress: optional callable receiving 1 after each traced frame.
         stats: optional dict filled with per-call candidate counts ("found").
 
     Returns:
-        {link name: PathSet} with ids None, delays [s], gains (|a|^2 = P_r/P_t, iso antennas), and
+        {link name: PathSet} with ids None, delays [s], gains (|a|^2 = P_r/P_t with the links' antenna
+        patterns, `RadarConfig.antennas`), and
         delay_rates from per-vertex body velocities. Frames without body paths have gain 0 everywhere.
     """
     from rtchannel.body.avatar import load_avatar
@@ -251,16 +228,17 @@ def trace_frames(rt_scene: RTScene, radar: RadarConfig, times: np.ndarray, verti
     faces = rt_scene.body_faces
     body_id = rt_scene.body_object_id
     links = list(radar.links)
-    groups = [links] if joint_links else [[lk] for lk in links]
+    # One call per antenna-shape group (Sionna RT has one tx and one rx array per scene), else per link.
+    groups = link_groups(radar, links) if joint_links else [[lk] for lk in links]
     tracer = _tracer(rt_scene, deterministic)
     per_link: dict[str, list] = {lk.name: [] for lk in links}
     stats = {} if stats is None else stats
     stats.setdefault("found", [])
-    placed = place_antennas(rt_scene, links) if joint_links else None
+    placed = place_antennas(rt_scene, groups[0], radar) if len(groups) == 1 else None
     for k in range(len(times)):
         rt_scene.set_body(vertices[k])
         for group in groups:
-            index, antennas = placed if joint_links else place_antennas(rt_scene, group)
+            index, antennas = placed if placed is not None else place_antennas(rt_scene, group, radar)
             rt_scene.check_clearance(antennas)
             res = tracer(rt_scene.sionna_scene, samples_per_src, max_depth, specular, diffuse, refraction,
                          diffraction, seed, pad_bucket, max_num_paths_per_src)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 
@@ -13,7 +14,8 @@ def cmd_bench(args) -> int:
 
     if args.chain:
         options = parse_options(args.option, per_backend=True).get(args.chain, {})
-        result = bench_chain(args.chain, repeats=args.repeats, duration=args.duration, **options)
+        result = bench_chain(args.chain, repeats=args.repeats, duration=args.duration, keep_iq=args.keep_iq,
+                             **options)
         text = json.dumps(result, indent=2)
         print(text)
         if args.out:
@@ -23,22 +25,25 @@ def cmd_bench(args) -> int:
     from tqdm import tqdm
 
     from rtchannel.radar import RadarConfig
-    from rtchannel.analysis.speed_error import FULL, QUICK, REFERENCE, SWEEP, Setting, sweep, write_outputs
+    from rtchannel.analysis.speed_error import QUICK, QUICK_REFERENCE, REFERENCE, SWEEP, sweep, write_outputs
 
     if args.out is None:
         raise UserError("the speed/error sweep needs --out DIR")
     settings = QUICK if args.quick else SWEEP
-    reference = REFERENCE if not args.quick else Setting("facets 10k, full accuracy", "facets",
-                                                         {"lod": "10k", **FULL})
+    reference = QUICK_REFERENCE if args.quick else REFERENCE
     motion = exact_duration_walk(args.duration)
     radar = RadarConfig()
     with tqdm(total=len(settings) + 1, unit="setting", disable=args.quiet or None) as bar:
-        rows = sweep(motion, radar, settings, reference, repeats=args.repeats, progress=bar.update)
+        rows, summary = sweep(motion, radar, settings, reference, repeats=args.repeats, progress=bar.update,
+                              reference_seeds=args.reference_seeds)
     meta = {"activity": f"{args.duration:g} s walk, 2 monostatic radars", "repeats": args.repeats,
-            "reference": reference.label}
+            "reference": reference.label, **summary}
     for p in write_outputs(rows, args.out, meta):
         print(f"wrote {p}")
     print((args.out / "speed_error.md").read_text())
+    if not summary["converged"]:
+        print(f"warning: the settings' error spread is only {summary['spread_to_self_error']:.1f}x the reference's "
+              f"own error; raise --reference-seeds", file=sys.stderr)
     return 0
 
 
@@ -50,12 +55,17 @@ def add_bench(sub) -> None:
                        description="Default: sweep backend settings (backend, LOD, trace rate, rays, depth, "
                        "walls) on a procedural walk with the two seed radars, measure wall time per simulated "
                        "second and the error of p(v,t) and mean velocity against a Sionna RT reference; "
-                       "writes speed_error.{csv,md,png,json}. With --chain BACKEND: time one backend's "
+                       "writes speed_error.{csv,md,png,json}. The reference is the mean over --reference-seeds runs. "
+                       "With --chain BACKEND: time one backend's "
                        "whole chain (medians, per-stage split) as JSON.")
     p.add_argument("--chain", metavar="BACKEND", help="time only this backend's chain (points, facets, sionna)")
     p.add_argument("--option", action="append", metavar="BACKEND.NAME=VALUE", help="backend option for --chain")
+    p.add_argument("--keep-iq", action="store_true",
+                   help="with --chain: time the raw-IQ route (keep_iq) instead of the default signature-only route")
     p.add_argument("--quick", action="store_true",
                    help="sweep without Sionna (reference: facets on the full mesh); minutes instead of an hour")
+    p.add_argument("--reference-seeds", type=positive_int, default=8,
+                   help="runs (ray or diffuse-phase seeds) averaged into the reference (default 8)")
     p.add_argument("--repeats", type=positive_int, default=3, help="timed repeats per setting (default 3)")
     p.add_argument("--duration", type=finite_float, default=5.0, help="simulated walk length [s] (default 5)")
     p.add_argument("--out", type=Path, help="output folder")

@@ -6,7 +6,6 @@ import argparse
 import math
 from pathlib import Path
 
-import numpy as np
 from pydantic import ValidationError
 
 EXIT_USAGE = 2
@@ -167,6 +166,8 @@ def load_radar(args):
 
 def build_motion(args):
     """The motion the user asked for: a motion-capture file or a procedural activity."""
+    import numpy as np
+
     from rtchannel.body.skeleton import Motion
 
     if args.motion_file is not None:

@@ -4,12 +4,56 @@ from __future__ import annotations
 from pathlib import Path
 
 
+def _sim_paths(items) -> list[Path]:
+    from rtchannel.cli.common import UserError
+
+    paths = []
+    for item in items:
+        p = Path(item)
+        found = sorted(p.rglob("signature.h5")) if p.is_dir() else [p] if p.is_file() else []
+        if not found:
+            raise UserError(f"--sim: no signature.h5 at {p}")
+        paths += found
+    return paths
+
+
+def cmd_compare_real(args) -> int:
+    """Table I with real recordings: simulated curves (rows) against real images (columns)."""
+    from processing.real_images import load_real_images, parse_people, read_labels_csv
+    from processing.sim_real_table import (curves_from_dataset, curves_from_images, curves_from_signature_files,
+                                           dtw_activity_table, write_dtw_table)
+    from rtchannel.cli.common import UserError, check_output
+
+    if (args.sim is None) == (args.data is None):
+        raise UserError("--real needs the simulated side: --sim FILES/DIRS or --data DATASET[:FILTER]")
+    check_output(args.out, "dir")
+    if args.sim is not None:
+        sim = curves_from_signature_files(_sim_paths(args.sim), args.link)
+    else:
+        from rtchannel.cli.classify import open_spec
+
+        reader, idx = open_spec(args.data)
+        sim = curves_from_dataset(reader, idx, args.link)
+    labels = read_labels_csv(args.labels) if args.labels is not None else None
+    images, bad = load_real_images(args.real, labels=labels, people=parse_people(args.people))
+    for _, why in bad:
+        print(f"warning: skipping unreadable image {why}")
+    table = dtw_activity_table(sim, curves_from_images(images), args.dt, args.dtw_scale)
+    files = write_dtw_table(table, args.out)
+    print(files[2].read_text())
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
+
 def cmd_compare(args) -> int:
     from tqdm import tqdm
 
+    if args.real is not None:
+        return cmd_compare_real(args)
+
     from rtchannel.cli.common import UserError, check_output, load_radar, parse_options, split_list
     from rtchannel.analysis.compare import compare
-    from rtchannel.motion.procedural import ACTIVITIES
+    from rtchannel.motion.activities import ACTIVITIES
     from rtchannel.backends import BACKENDS
 
     args.backends = split_list(args.backends)
@@ -39,13 +83,14 @@ def cmd_compare(args) -> int:
 def add_compare(sub) -> None:
     """Register the `compare` subcommand."""
     from rtchannel.cli.common import add_radar_args
-    from rtchannel.motion.procedural import ACTIVITIES
+    from rtchannel.motion.activities import ACTIVITIES
 
     p = sub.add_parser("compare", help="one set of activities through several backends: DTW table + p(v,t) figure",
                        description="Simulate procedural activities through two or more backends and write the "
                        "seed's Table I between the first backend and each other one (normalised DTW of mean "
                        "radial velocities for every activity pair), per-activity p(v,t) total-variation and "
-                       "mean-velocity RMSE, and a side-by-side PNG of p(v,t).")
+                       "mean-velocity RMSE, and a side-by-side PNG of p(v,t). With --real: simulated signatures (--sim or "
+                       "--data) against real spectrogram images instead, rows simulated, columns real.")
     p.add_argument("--backends", nargs="+", default=["points", "facets"], help="backends, space- or comma-separated (default points facets)")
     p.add_argument("--activities", nargs="+", default=list(ACTIVITIES), help="activities (default all five)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
@@ -55,4 +100,16 @@ def add_compare(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="motion seed")
     add_radar_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    g = p.add_argument_group("Table I against real recordings (--real: no simulation is run)")
+    g.add_argument("--real", type=Path, help="folder of real spectrogram images (Glasgow layout and names, or "
+                   "--labels); the table's columns")
+    g.add_argument("--sim", nargs="+", help="simulated signature.h5 files or folders holding them; the rows")
+    g.add_argument("--data", help="or a dataset DIR[:FILTER] as the rows")
+    g.add_argument("--link", default="radar1", help="simulated link to compare (default radar1)")
+    g.add_argument("--labels", type=Path, help="CSV file,activity[,subject] for images without Glasgow names")
+    g.add_argument("--people", help="real subjects only, e.g. P36-P45")
+    g.add_argument("--dt", type=float, default=0.016, help="common time step of the curves before DTW [s] "
+                   "(default 0.016)")
+    g.add_argument("--dtw-scale", type=float, help="divide every DTW by this speed [m/s] (default: each "
+                   "pair's peak |v|, as the backend table)")
     p.set_defaults(func=cmd_compare)

@@ -3,8 +3,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from rtchannel.cli.common import UserError, add_motion_args, add_radar_args, build_motion, check_output, load_radar
 from rtchannel.cli.simulate import add_chair_arg, scene_with_chair
 
@@ -27,6 +25,8 @@ def add_render(sub) -> None:
 
 
 def cmd_render(args) -> int:
+    import numpy as np
+
     from rtchannel.scene.render import render_scene, render_strip
 
     radar, _ = load_radar(args)

@@ -3,7 +3,9 @@ simulate with the plan's backend, the signal layer (clutter, receiver noise) app
 
 Warm state: motions and loaded motion files are cached per process (items are sorted so that all
 directions and gain sets of one motion run back to back on one worker), and backends keep their own
-scene/kernel caches at module level, so a Dask worker pays those costs once.
+scene/kernel caches at module level, so a Dask worker pays those costs once. For the mesh backends the
+items of one motion run as one task and share one backend run (`run_shared`): the body is skinned and its
+BVH built once per frame for all of their antennas.
 """
 from __future__ import annotations
 
@@ -80,71 +82,118 @@ def item_gains(gain_set: dict, rng: np.random.Generator) -> np.ndarray:
     return g
 
 
-def run_item(item: WorkItem) -> dict:
-    """Simulate one item. Returns {"entry": index entry, "links": {link: arrays}} for `write_shard`."""
-    t0, c0 = time.perf_counter(), time.process_time()
-    ss = np.random.SeedSequence(item.seed)
-    gain_ss, clutter_ss, noise_ss = ss.spawn(3)
-    motion = build_motion(item.motion)
-    radar = RadarConfig.model_validate(item.radar).rotated(item.angle_deg)
-    gains = item_gains(item.gain_set, np.random.default_rng(gain_ss))
-    seed_g = seed_scatterers(avatar_rig()).gains
-    overall = float(np.sqrt(np.sum(gains ** 2) / np.sum(seed_g ** 2)))
-    options = dict(item.backend_options)
-    if item.backend == "points":
-        options["gains"] = gains
-    signal_layer = item.snr_db is not None or item.clutter is not None
-    mesh_scale = item.backend != "points" and overall != 1.0  # mesh backends: the set's overall factor
+class _Job:
+    """One item made ready to simulate: motion, rotated radar, backend options, signal-layer transform, and
+    `finish` turning the simulation result into the stored record."""
 
-    from rtchannel.pipeline import simulate
-
-    links, clutter_info = {}, {}
-    noise_streams = dict(zip((link.name for link in radar.links), noise_ss.spawn(len(radar.links))))
-
-    def signal_layer_on_iq(name, iq):
-        # raw IQ -> (mesh backends: the gain set's overall factor) -> clutter -> receiver noise, before DSP
-        if mesh_scale:
-            iq = (iq * np.float32(overall)).astype(np.complex64)
-        p_s = signal_power(iq)
-        if item.clutter is not None:
-            crng = np.random.default_rng(clutter_ss.spawn(1)[0])
-            iq, clutter_info[name] = add_clutter(iq, radar.waveform, crng, reference_power=p_s, **item.clutter)
-        if item.snr_db is not None:
-            iq = add_noise(iq, item.snr_db, np.random.default_rng(noise_streams[name]), reference_power=p_s)
-        return iq
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        if item.backend != "points" and item.chair != "none":  # the points backend is free space
+    def __init__(self, item: WorkItem):
+        self.item = item
+        self.t0, self.c0 = time.perf_counter(), time.process_time()
+        ss = np.random.SeedSequence(item.seed)
+        gain_ss, self.clutter_ss, noise_ss = ss.spawn(3)
+        self.motion = build_motion(item.motion)
+        self.radar = RadarConfig.model_validate(item.radar).rotated(item.angle_deg)
+        self.gains = item_gains(item.gain_set, np.random.default_rng(gain_ss))
+        seed_g = seed_scatterers(avatar_rig()).gains
+        self.overall = float(np.sqrt(np.sum(self.gains ** 2) / np.sum(seed_g ** 2)))
+        self.options = dict(item.backend_options)
+        if item.backend == "points":
+            self.options["gains"] = self.gains
+        elif item.chair != "none":  # mesh backends: furniture (the points backend is free space)
             from rtchannel.scene.chair_fit import scene_for
 
-            options["scene"] = scene_for(motion, options.get("scene"), item.chair)
-        result = simulate(motion, radar, backend=item.backend, keep_iq=item.keep_iq, noise_seed=item.seed,
-                          iq_transform=signal_layer_on_iq if signal_layer else None, **options)
-    for name, lr in result.links.items():
-        sig, iq = lr.signature, lr.iq
-        if mesh_scale and not signal_layer:
-            if iq is not None:
-                iq = (iq * np.float32(overall)).astype(np.complex64)
-            sig = replace(sig, power=sig.power * overall ** 2)  # normalised distributions are unchanged
-        if item.image_layout == "glasgow":  # the display chain of the real images (40 dB span, 8-bit colour)
-            from processing.spectrogram_image import glasgow_layout
-            from processing.spectrogram_image_writer import through_image
+            self.options["scene"] = scene_for(self.motion, self.options.get("scene"), item.chair)
+        self.signal_layer = item.snr_db is not None or item.clutter is not None
+        self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
+        self.clutter_info = {}
+        self.noise_streams = dict(zip((link.name for link in self.radar.links), noise_ss.spawn(len(self.radar.links))))
 
-            sig = through_image(sig, glasgow_layout(float(item.motion["clip_s"])))
-        arrays = signature_arrays(sig)
-        if item.keep_iq:
-            arrays["iq"] = np.asarray(iq, dtype=np.complex64)
-        links[name] = arrays
-    params = item.to_dict()
-    params.update(motion_params=motion.params, gains=[float(x) for x in gains], gain_overall=overall,
-                  clutter_draws=clutter_info or None, duration_s=float(motion.duration),
-                  warnings=sorted({str(w.message) for w in caught}))
-    entry = {"item_id": item.item_id, "activity": item.activity, "label": ACTIVITIES.index(item.activity),
-             "direction_deg": item.angle_deg, "direction": item.direction, "backend": item.backend,
-             "group": item.group, "source": item.source, "link_set": item.link_set,
-             "gain_set": item.gain_set["name"], "snr_db": item.snr_db, "seed": item.seed,
-             "n_time": int(next(iter(links.values()))["p_vt"].shape[1]) if links else 0,
-             "params": params, "seconds": round(time.perf_counter() - t0, 4),
-             "cpu_seconds": round(time.process_time() - c0, 4)}
-    return {"entry": entry, "links": links}
+    def transform(self, name, iq):
+        """Signal layer on the raw IQ before DSP: (mesh backends: the gain set's overall factor) -> clutter ->
+        relative receiver noise."""
+        item = self.item
+        if self.mesh_scale:
+            iq = (iq * np.float32(self.overall)).astype(np.complex64)
+        p_s = signal_power(iq)
+        if item.clutter is not None:
+            crng = np.random.default_rng(self.clutter_ss.spawn(1)[0])
+            iq, self.clutter_info[name] = add_clutter(iq, self.radar.waveform, crng, reference_power=p_s,
+                                                      **item.clutter)
+        if item.snr_db is not None:
+            iq = add_noise(iq, item.snr_db, np.random.default_rng(self.noise_streams[name]), reference_power=p_s)
+        return iq
+
+    @property
+    def iq_transform(self):
+        return self.transform if self.signal_layer else None
+
+    def finish(self, result, caught, shared_with: int = 1) -> dict:
+        """{"entry": index entry, "links": {link: arrays}} of the simulation `result`."""
+        item, overall = self.item, self.overall
+        links = {}
+        for name, lr in result.links.items():
+            sig, iq = lr.signature, lr.iq
+            if self.mesh_scale and not self.signal_layer:
+                if iq is not None:
+                    iq = (iq * np.float32(overall)).astype(np.complex64)
+                sig = replace(sig, power=sig.power * overall ** 2)  # normalised distributions are unchanged
+            if item.image_layout == "glasgow":  # the display chain of the real images (40 dB span, 8-bit colour)
+                from processing.spectrogram_image import glasgow_layout
+                from processing.spectrogram_image_writer import through_image
+
+                sig = through_image(sig, glasgow_layout(float(item.motion["clip_s"])))
+            arrays = signature_arrays(sig)
+            if item.keep_iq:
+                arrays["iq"] = np.asarray(iq, dtype=np.complex64)
+            links[name] = arrays
+        params = item.to_dict()
+        params.update(motion_params=self.motion.params, gains=[float(x) for x in self.gains], gain_overall=overall,
+                      clutter_draws=self.clutter_info or None, duration_s=float(self.motion.duration),
+                      warnings=sorted({str(w.message) for w in caught}), traced_with_items=shared_with)
+        entry = {"item_id": item.item_id, "activity": item.activity, "label": ACTIVITIES.index(item.activity),
+                 "direction_deg": item.angle_deg, "direction": item.direction, "backend": item.backend,
+                 "group": item.group, "source": item.source, "link_set": item.link_set,
+                 "gain_set": item.gain_set["name"], "snr_db": item.snr_db, "seed": item.seed,
+                 "n_time": int(next(iter(links.values()))["p_vt"].shape[1]) if links else 0,
+                 "params": params, "seconds": round((time.perf_counter() - self.t0) / shared_with, 4),
+                 "cpu_seconds": round((time.process_time() - self.c0) / shared_with, 4)}
+        return {"entry": entry, "links": links}
+
+
+def run_item(item: WorkItem) -> dict:
+    """Simulate one item. Returns {"entry": index entry, "links": {link: arrays}} for `write_shard`."""
+    from rtchannel.pipeline import simulate
+
+    job = _Job(item)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = simulate(job.motion, job.radar, backend=item.backend, keep_iq=item.keep_iq, noise_seed=item.seed,
+                          iq_transform=job.iq_transform, **job.options)
+    return job.finish(result, caught)
+
+
+def shared_key(item: WorkItem) -> str:
+    """Items with equal keys can share one backend run (`run_shared`): same augmented motion, mesh backend,
+    options and waveform; they differ in direction, link set, gain set and signal layer."""
+    if item.backend == "points":  # per-item scatterer gains; the backend is ~1 % of the chain anyway
+        return item.item_id
+    return json.dumps([item.motion["key"], item.backend, item.backend_options, item.radar["waveform"],
+                       item.keep_iq], sort_keys=True, default=str)
+
+
+def run_shared(items: list[WorkItem]) -> list[dict]:
+    """Simulate items of one `shared_key` with the backend run once for all their radars
+    (`rtchannel.pipeline.simulate_radars`: one skinning and BVH per frame for every direction); each record
+    equals `run_item`'s. Raises if the shared run fails (the caller then runs the items one by one)."""
+    from rtchannel.pipeline import simulate_radars
+
+    if len({shared_key(it) for it in items}) != 1:
+        raise ValueError("run_shared needs items of one shared_key")
+    jobs = [_Job(it) for it in items]
+    first = items[0]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        results = simulate_radars(jobs[0].motion, [j.radar for j in jobs], first.backend, keep_iq=first.keep_iq,
+                                  iq_transforms=[j.iq_transform for j in jobs],
+                                  noise_seeds=[it.seed for it in items], **jobs[0].options)
+    return [j.finish(r, caught, len(jobs)) for j, r in zip(jobs, results)]

@@ -1,6 +1,7 @@
 """Run a plan's work items with Dask (or in this process for one worker), resumably, into HDF5 shards.
 
-* Items are processed in batches of `items_per_shard`; each batch is one Dask task that writes one shard
+* Items are processed in batches of `items_per_shard` (mesh backends: all items of one motion, which share
+  one backend run); each batch is one Dask task that writes one shard
   (temporary file, fsync, rename) and returns the entries. The shards are the source of truth: on start
   the runner removes orphan temporary files, re-reads every shard and checks every stored array against
   its sha256 (`scan_shards(verify=True, repair=True)`): a shard that is unreadable, foreign or holds a
@@ -107,25 +108,51 @@ def shard_name(plan_digest: str, items: list[WorkItem]) -> str:
     return h[:20] + ".h5"
 
 
+def make_batches(pending: list[WorkItem], per: int) -> list[list[WorkItem]]:
+    """Tasks (= shards): `per` items each, except for the mesh backends, where all pending items of one
+    motion form one task (they share one backend run, `rtchannel.dataset.items.run_shared`), split only
+    beyond 4 x `per` items. Deterministic for a given pending list."""
+    from rtchannel.dataset.items import shared_key
+
+    if not pending or pending[0].backend == "points":
+        return [pending[i:i + per] for i in range(0, len(pending), per)]
+    groups: dict[str, list[WorkItem]] = {}
+    for it in pending:
+        groups.setdefault(shared_key(it), []).append(it)
+    cap = 4 * per
+    return [g[i:i + cap] for g in groups.values() for i in range(0, len(g), cap)]
+
+
 def run_batch(items: list[WorkItem], out: str, plan_digest: str, retries: int, dr_threads: int | None,
               configure: bool = True) -> dict:
     """Run a batch (in a worker; `configure` limits its threads): write its shard; returns
     {"shard", "entries", "errors"}."""
-    from rtchannel.dataset.items import run_item
+    from rtchannel.dataset.items import run_item, run_shared, shared_key
 
     if configure:
         configure_worker(items[0].backend if items else "points", dr_threads)
     records, errors = [], []
+    groups: dict[str, list[WorkItem]] = {}
     for it in items:
-        for attempt in range(retries + 1):
+        groups.setdefault(shared_key(it), []).append(it)
+    for group in groups.values():
+        if len(group) > 1:
             try:
-                records.append(check_record(run_item(it)))  # an empty or NaN signature is an item failure
-                break
-            except Exception as exc:  # noqa: BLE001 - recorded per item, the run goes on
-                if attempt == retries:
-                    errors.append({"item_id": it.item_id, "activity": it.activity, "source": it.source,
-                                   "attempts": attempt + 1, "error": f"{type(exc).__name__}: {exc}",
-                                   "traceback": traceback.format_exc(limit=4)})
+                records.extend(check_record(r) for r in run_shared(group))
+                continue
+            except Exception as exc:  # noqa: BLE001 - the items run one by one below, with retries and errors
+                warnings.warn(f"shared backend run of {len(group)} items failed ({type(exc).__name__}: {exc}); "
+                              "running them one by one", stacklevel=1)
+        for it in group:
+            for attempt in range(retries + 1):
+                try:
+                    records.append(check_record(run_item(it)))  # an empty or NaN signature is an item failure
+                    break
+                except Exception as exc:  # noqa: BLE001 - recorded per item, the run goes on
+                    if attempt == retries:
+                        errors.append({"item_id": it.item_id, "activity": it.activity, "source": it.source,
+                                       "attempts": attempt + 1, "error": f"{type(exc).__name__}: {exc}",
+                                       "traceback": traceback.format_exc(limit=4)})
     if not records:
         return {"shard": None, "entries": [], "errors": errors}
     name = shard_name(plan_digest, items)
@@ -212,8 +239,7 @@ def _run_locked(plan, out, scheduler, workers, retries, progress, client, item_f
     items = [it for it in expand(plan) if item_filter is None or item_filter(it)]
     done_ids = {e["item_id"] for e in done}
     pending = [it for it in items if it.item_id not in done_ids]
-    per = plan.storage.items_per_shard
-    batches = [pending[i:i + per] for i in range(0, len(pending), per)]
+    batches = make_batches(pending, plan.storage.items_per_shard)
     n_workers = workers or os.cpu_count() or 1
     summary = RunSummary(total=len(items), done_before=len(items) - len(pending), done_now=0, workers=n_workers,
                          quarantined=quarantined, verify_seconds=verify_s)

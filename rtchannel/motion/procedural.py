@@ -35,8 +35,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from rtchannel.motion import kinematics as km
 from rtchannel.motion.kinematics import DEG, NOMINAL_HEIGHT_M, keyframes, step
 from rtchannel.body.skeleton import Motion, Rig, avatar_rig
-
-ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")
+from rtchannel.motion.activities import ACTIVITIES
 
 _DEFAULT_DURATION_S = {"fall": 1.5, "sit": 2.3, "stand": 1.9, "pick": 2.8}
 _DURATION_RANGE_S = {"fall": (0.8, 3.0), "sit": (1.0, 5.0), "stand": (1.0, 5.0), "pick": (1.5, 8.0)}

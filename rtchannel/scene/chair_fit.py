@@ -26,7 +26,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d
 
 from rtchannel.body.skeleton import Motion
 from rtchannel.scene.furniture import (BACK_TOP_ABOVE_SEAT_M, CHAIR, LEG_SECTION_M, SEAT_DEPTH_M,
@@ -52,6 +51,8 @@ def _hips(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 
 def seated_frames(motion: Motion) -> np.ndarray:
     """Boolean [F] of the frames in which the person sits (see the module doc); raises ValueError if none."""
+    from scipy.ndimage import maximum_filter1d  # here: a walk through a mesh backend never needs scipy.ndimage
+
     mid, _ = _hips(motion)
     z = mid[:, 2]
     n = max(1, min(len(z), int(round(SUSTAIN_S * motion.fps)) + 1))

@@ -31,6 +31,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
+from rtchannel.errors import RadarPlacementError
 from rtchannel.scene.assets import scenes_dir
 from rtchannel.scene.sandbox import load_scene_string, read_scene_xml
 from rtchannel.body.meshgeom import closest_point_on_triangles
@@ -40,10 +41,6 @@ BODY_ID = "body"
 _SKIN_MATERIAL_ID = "rtchannel-skin"
 MIN_WALL_AREA_M2 = 0.25  # planar faces smaller than this are left to the ray tracer (no image sources)
 _PLANE_TOL_M = 1e-3
-
-
-class RadarPlacementError(ValueError):
-    """An antenna is too close to (or inside) scene geometry."""
 
 
 # Gabriel et al. 1996, Table 1, "Skin (Dry)": eps_inf, sigma_ionic [S/m], then (delta_eps, tau [s], alpha).

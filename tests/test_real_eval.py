@@ -1,0 +1,227 @@
+"""Sim-to-real on real spectrogram images (tests/data/glasgow): `evaluate --images` with a tiny model
+trained here on synthetic inputs, the noise-aware valid mask, the active-span fix, and the real-data
+Table I (`compare --real`)."""
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sklearn.metrics as skm
+import torch
+
+from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, TrainConfig, build_model,
+                                   load_checkpoint, preprocess, save_checkpoint, train)
+from processing.classifier.images import evaluate_images, image_inputs
+from processing.dataset_store import ACTIVITIES
+from processing.dsp import Signature
+from processing.metrics import normalised_dtw
+from processing.real_images import (NOISE_COLUMN_DB, RealImageError, load_real_images, parse_people,
+                                    read_real_image)
+from processing.signature_file import write_signature_file
+from processing.sim_real_table import (Curve, curves_from_images, dtw_activity_table, resample)
+from rtchannel.cli import main
+
+GLASGOW = Path(__file__).parent / "data" / "glasgow"
+PRE = PreprocessConfig(n_velocity=32, n_time=32)
+V = np.linspace(-6.2, 6.2, 64, endpoint=False)
+
+
+def _line(v0: float, t: int, rng) -> np.ndarray:
+    """Column-normalised p(v,t) [64, t]: a Gaussian line (0.3 m/s wide) at v0 plus a little noise."""
+    p = np.exp(-0.5 * ((V[:, None] - v0) / 0.3) ** 2) + 1e-3 * rng.random((64, t))
+    return p / p.sum(axis=0)
+
+
+@pytest.fixture(scope="module")
+def model_path(tmp_path_factory):
+    """A 5-class, single-radar model trained on two synthetic classes: approaching (+0.5..3 m/s) = walk,
+    receding (-3..-0.5 m/s) = fall. The other three classes never occur in training."""
+    rng = np.random.default_rng(0)
+    x, y = [], []
+    for k in range(40):
+        sign = 1 if k % 2 == 0 else -1
+        t = int(rng.integers(80, 200))
+        x.append(preprocess(_line(sign * rng.uniform(0.5, 3.0), t, rng), V, np.arange(t) * 0.016, PRE)[None])
+        y.append(ACTIVITIES.index("walk" if sign > 0 else "fall"))
+    mcfg = ModelConfig(n_classes=len(ACTIVITIES), n_branches=1, input_size=(32, 32), padding="same")
+    res = train(np.stack(x), np.array(y), mcfg, TrainConfig(epochs=6, patience=6, batch_size=8, group_split=False,
+                                                            seed=1, threads=1), progress=False, log=None)
+    clf = Classifier(model=res.model, preprocess=PRE, classes=list(ACTIVITIES), links=["radar1"])
+    acc = (clf.predict(np.stack(x)) == np.array(y)).mean()
+    assert acc >= 0.9, acc  # sign of a line is trivially separable; a broken training falls to ~0.5
+    return save_checkpoint(tmp_path_factory.mktemp("model") / "m.pt", clf)
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_evaluate_images_metrics_consistent_and_drink_apart(model_path, tmp_path, capsys):
+    out = tmp_path / "ev"
+    assert main(["evaluate", "--model", str(model_path), "--images", str(GLASGOW), "--out", str(out)]) == 0
+    for name in ("confusion.png", "confusion.csv", "metrics.json", "predictions.csv", "unknown_predictions.csv",
+                 "unknown_counts.csv"):
+        assert (out / name).is_file(), name
+    m = json.loads((out / "metrics.json").read_text())
+    cm = np.array(m["confusion"])
+    # 12 images, 2 of them drink (not a model class): 10 counted, 2 reported apart
+    assert m["n"] == 10 == cm.sum() and m["n_unknown"] == 2
+    assert m["unknown_classes"]["drink"]["n"] == 2 and sum(m["unknown_classes"]["drink"]["predicted"].values()) == 2
+    assert m["accuracy"] == pytest.approx(np.trace(cm) / cm.sum(), abs=1e-12)
+    rows = _rows(out / "predictions.csv")
+    assert len(rows) == 10 and "drink" not in {r["true"] for r in rows}
+    y_true, y_pred = [r["true"] for r in rows], [r["predicted"] for r in rows]
+    assert m["macro_f1"] == pytest.approx(skm.f1_score(y_true, y_pred, average="macro", zero_division=0), abs=1e-12)
+    assert m["accuracy"] == pytest.approx(skm.accuracy_score(y_true, y_pred), abs=1e-12)
+    # probabilities: one column per class, rows sum to 1 (5 values rounded to 6 decimals: <= 2.5e-6 off)
+    probs = np.array([[float(r[f"p_{c}"]) for c in ACTIVITIES] for r in rows])
+    np.testing.assert_allclose(probs.sum(axis=1), 1.0, atol=1e-5)
+    assert [ACTIVITIES[i] for i in probs.argmax(axis=1)] == y_pred
+    unk = _rows(out / "unknown_predictions.csv")
+    assert sorted(r["file"] for r in unk) == ["5P36A05R01.png", "5P46A05R01.png"]
+    counts = _rows(out / "unknown_counts.csv")
+    assert len(counts) == 1 and counts[0]["true \\ predicted"] == "drink" and counts[0]["n"] == "2"
+    # the confusion CSV (seed layout) holds the same counts
+    grid = list(csv.reader(open(out / "confusion.csv")))
+    assert grid[0][1:-1] == list(ACTIVITIES)
+    np.testing.assert_array_equal(np.array([[int(v) for v in r[1:-1]] for r in grid[1:-1]]), cm)
+    assert "not in accuracy" in capsys.readouterr().out
+
+
+def test_people_filter_splits_subjects(model_path, tmp_path):
+    assert parse_people("P36-P45") == frozenset(range(36, 46))
+    assert parse_people("36,P40-P41") == frozenset({36, 40, 41})
+    with pytest.raises(RealImageError):
+        parse_people("P45-P36")
+    for people, subject in (("P36-P45", "P36"), ("P46-P56", "P46")):
+        out = tmp_path / subject
+        assert main(["evaluate", "--model", str(model_path), "--images", str(GLASGOW), "--people", people,
+                     "--out", str(out)]) == 0
+        rows = _rows(out / "predictions.csv")
+        assert len(rows) == 5 and {r["subject"] for r in rows} == {subject}
+        assert json.loads((out / "metrics.json").read_text())["n_unknown"] == 1
+
+
+def test_image_input_is_the_simulated_preprocessing(model_path):
+    clf = load_checkpoint(model_path)
+    images, bad = load_real_images(GLASGOW, people=frozenset({36}))
+    assert not bad and len(images) == 6
+    x = image_inputs(clf, images)
+    for im, xi in zip(images, x):
+        s = im.signature
+        np.testing.assert_array_equal(xi[0], preprocess(s.p_vt, s.velocity, s.time, clf.preprocess, s.valid))
+    ev = evaluate_images(clf, images)
+    assert ev.report.n == 5 and [im.activity for im in ev.unknown] == ["drink"]
+
+
+def test_non_glasgow_names_need_labels(model_path, tmp_path, capsys):
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    shutil.copy(GLASGOW / "1P36A01R01.png", folder / "my_walk.png")
+    shutil.copy(GLASGOW / "6P36A06R01.png", folder / "my_fall.png")
+    out = tmp_path / "ev"
+    assert main(["evaluate", "--model", str(model_path), "--images", str(folder), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "my_fall.png" in err and "--labels" in err and len(err.splitlines()) == 1
+    labels = tmp_path / "labels.csv"
+    labels.write_text("file,activity,subject\nmy_walk.png,walk,P1\nmy_fall.png,fall,2\n")
+    assert main(["evaluate", "--model", str(model_path), "--images", str(folder), "--labels", str(labels),
+                 "--out", str(out)]) == 0
+    rows = _rows(out / "predictions.csv")
+    assert {(r["file"], r["true"], r["subject"]) for r in rows} == {("my_walk.png", "walk", "P1"),
+                                                                    ("my_fall.png", "fall", "P2")}
+
+
+def test_two_branch_model_rejected(tmp_path, capsys):
+    mcfg = ModelConfig(n_classes=5, n_branches=2, input_size=(32, 32), padding="same")
+    torch.manual_seed(0)
+    clf = Classifier(model=build_model(mcfg), preprocess=PRE, classes=list(ACTIVITIES), links=["radar1", "radar2"])
+    path = save_checkpoint(tmp_path / "two.pt", clf)
+    assert main(["evaluate", "--model", str(path), "--images", str(GLASGOW), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "2 branches" in err and len(err.splitlines()) == 1
+
+
+def test_noise_aware_valid_on_real_images():
+    # walks never drop below -22 dB column power (all 360 measured); the fall 6P36 is a ~1 s event in
+    # 5 s with the rest at -36 dB (its median column), so most of its columns are noise only
+    walk = read_real_image(GLASGOW / "1P36A01R01.png")
+    assert walk.valid.all()
+    fall = read_real_image(GLASGOW / "6P36A06R01.png")
+    assert 0.1 < fall.valid.mean() < 0.6
+    assert (fall.mean_velocity[~fall.valid] == 0).all()
+    rel_db = 10 * np.log10(np.maximum(fall.power, 1e-300) / fall.power.max())
+    assert (rel_db[~fall.valid] < NOISE_COLUMN_DB).all() and (rel_db[fall.valid] >= NOISE_COLUMN_DB).all()
+
+
+def test_active_span_ignores_noise_only_columns():
+    t = np.arange(500) * 0.016
+    p = np.full((64, 500), 1 / 64)                  # noise only: spread evenly over v (|v| bins ~ 16)
+    p[:, 200:300] = 0.0
+    p[40, 200:300] = 1.0                             # 1.6 s of motion at +1.6 m/s (8 bins from zero)
+    valid = np.zeros(500, bool)
+    valid[200:300] = True
+    cfg = PreprocessConfig(active_margin_s=0.0, n_time=50)
+    crop = preprocess(p[:, 200:300], V, t[200:300], PreprocessConfig(n_time=50, time_mode="resample"))
+    np.testing.assert_allclose(preprocess(p, V, t, cfg, valid), crop)
+    # without the mask, the noise columns' spread looks like more motion than the line: whole recording
+    whole = preprocess(p, V, t, PreprocessConfig(n_time=50, time_mode="resample"))
+    np.testing.assert_allclose(preprocess(p, V, t, cfg), whole)
+    np.testing.assert_allclose(preprocess(p, V, t, cfg.model_copy(update={"active_valid_only": False}), valid), whole)
+
+
+def test_old_checkpoints_keep_the_old_active_span(model_path, tmp_path):
+    blob = torch.load(model_path, weights_only=True)
+    del blob["preprocess"]["active_valid_only"]
+    torch.save(blob, tmp_path / "old.pt")
+    assert load_checkpoint(tmp_path / "old.pt").preprocess.active_valid_only is False
+    assert load_checkpoint(model_path).preprocess.active_valid_only is True
+
+
+# ---- Table I against real recordings ---------------------------------------------------------------
+def test_real_vs_real_table_has_zero_diagonal():
+    images, _ = load_real_images(GLASGOW, people=frozenset({36}))
+    curves = curves_from_images(images)
+    tab = dtw_activity_table(curves, curves)
+    assert tab.rows == tab.cols == ["fall", "walk", "stand", "sit", "pick", "drink"]
+    np.testing.assert_array_equal(np.diag(tab.mean), 0.0)
+    np.testing.assert_allclose(tab.mean, tab.mean.T, atol=1e-12)  # DTW is symmetric
+    off = tab.mean[~np.eye(6, dtype=bool)]
+    # different activities differ; RMS/peak normalisation bounds a pair by ~2 (opposite peaks)
+    assert off.min() > 0.05 and off.max() < 2.0
+
+
+def _signature(t: np.ndarray, mean_v: np.ndarray) -> Signature:
+    p = np.zeros((64, t.size))
+    p[np.clip(np.searchsorted(V, mean_v), 0, 63), np.arange(t.size)] = 1.0
+    return Signature(time=t, velocity=V, p_vt=p, mean_velocity=mean_v, range=np.zeros(1),
+                     range_distribution=np.ones((1, t.size)), valid=np.ones(t.size, bool), power=np.ones(t.size))
+
+
+def test_compare_real_cli_writes_table_with_real_columns(tmp_path):
+    t = np.arange(250) * 0.016
+    for act, v in (("walk", 1.3 * np.sin(np.pi * t / t[-1])), ("fall", -2.0 * np.exp(-((t - 2) / 0.3) ** 2))):
+        write_signature_file(tmp_path / "sim" / act / "signature.h5", {"radar1": _signature(t, v)}, activity=act,
+                             backend="points", seed=0, direction_deg=0.0, config={})
+    out = tmp_path / "tab"
+    assert main(["compare", "--real", str(GLASGOW), "--sim", str(tmp_path / "sim"), "--people", "P36",
+                 "--out", str(out)]) == 0
+    grid = list(csv.reader(open(out / "dtw_simulated_vs_real.csv")))
+    assert grid[0] == ["simulated \\ real", "fall", "walk", "stand", "sit", "pick", "drink"]
+    assert [r[0] for r in grid[1:]] == ["fall", "walk"]
+    assert (out / "dtw_simulated_vs_real.png").is_file()
+    # one real image per activity (P36): a cell is the normalised DTW of that one pair
+    real = {im.activity: im for im in load_real_images(GLASGOW, people=frozenset({36}))[0]}
+    sim_walk = Curve("w", "walk", t, 1.3 * np.sin(np.pi * t / t[-1]))
+    im = real["fall"]
+    want = normalised_dtw(resample(sim_walk, 0.016), resample(Curve("r", "fall", im.signature.time,
+                                                                    im.signature.mean_velocity), 0.016))
+    assert float(grid[2][1]) == pytest.approx(want, abs=5e-5)  # CSV keeps 4 decimals
+
+
+def test_compare_real_needs_a_simulated_side(tmp_path, capsys):
+    assert main(["compare", "--real", str(GLASGOW), "--out", str(tmp_path / "o")]) == 2
+    assert "--sim" in capsys.readouterr().err
