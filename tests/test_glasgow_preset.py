@@ -132,3 +132,18 @@ def test_image_layout_needs_glasgow_clip_lengths(tmp_path):
     plan["motion"]["clip_s"] = {"walk": 10.0, "*": 5.0}
     p.write_text(yaml.safe_dump(plan))
     assert load_plan(p).storage.image_layout == "glasgow"
+
+
+def test_stored_item_is_on_the_glasgow_image_grid(items):
+    """With storage.image_layout glasgow an item holds what a 5 s Glasgow image holds: 317 velocity rows
+    between the frame rows at +-6 m/s (row 36 and 354: 12 m/s / 318 = 0.0377 m/s per row, so the outer row
+    centres are at +-(6 - 0.0377) m/s), 383 columns over 0-5 s, no range data, finite p(v,t)."""
+    from rtchannel.dataset.items import run_item
+
+    it = next(i for i in items if i.activity == "pick")
+    arrays = run_item(it)["links"]["radar1"]
+    v, t = arrays["velocity"], arrays["time"]
+    assert arrays["p_vt"].shape == (317, 383) and arrays["range"].size == 0
+    assert v[0] == pytest.approx(-6 + 12 / 318, abs=1e-4) and v[-1] == pytest.approx(6 - 12 / 318, abs=1e-4)
+    assert 0 < t[0] < 0.02 and 4.98 < t[-1] < 5.0
+    assert np.isfinite(arrays["p_vt"]).all() and arrays["valid"].any()
