@@ -70,7 +70,8 @@ def build_motion(m: dict) -> Motion:
         if m.get("clip_s") is not None:
             motion = fit_clip(motion, m["clip_s"], m["clip_lead"])
         return motion
-    return _cached(_MOTIONS, m["key"], make)
+    # keyed by the whole motion dict: motion keys ("walk-00-0000-m00") repeat across plans run in one process
+    return _cached(_MOTIONS, json.dumps(m, sort_keys=True, default=str), make)
 
 
 def item_gains(gain_set: dict, rng: np.random.Generator) -> np.ndarray:
