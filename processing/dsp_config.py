@@ -119,7 +119,10 @@ class DSPConfig(BaseModel):
         if self.fft_points is not None and self.fft_points < self.window_chirps:
             raise ValueError(f"fft_points ({self.fft_points}) must be at least window_chirps "
                              f"({self.window_chirps}); zero padding cannot shorten the window")
-        if {"mti_cutoff_hz", "mti_cutoff_mps"} <= self.model_fields_set and self.mti_cutoff_hz is not None:
+        # a dumped config carries both fields (the m/s one at its default): only a non-default m/s value
+        # next to a Hz value is a contradiction, so model_dump -> model_validate round-trips
+        if ({"mti_cutoff_hz", "mti_cutoff_mps"} <= self.model_fields_set and self.mti_cutoff_hz is not None
+                and self.mti_cutoff_mps != DEFAULT_MTI_CUTOFF_MPS):
             raise ValueError("give the MTI cut-off either in Hz (mti_cutoff_hz) or in m/s (mti_cutoff_mps), "
                              "not both")
         if self.max_range_m is not None and self.max_range_m < self.min_range_m:

@@ -154,3 +154,31 @@ def write_signature_image(path: str | Path, sig: Signature, layout: ImageLayout,
     p = np.asarray(sig.p_vt, dtype=np.float64)
     power = p * sig.power[None, :] if np.size(sig.power) == p.shape[1] else p
     return write_spectrogram_image(path, sig.velocity, sig.time, layout, power=power, **kwargs)
+
+
+def through_image(sig: Signature, layout: ImageLayout, duration_s: float | None = None) -> Signature:
+    """`sig` as an image in `layout` shows it: drawn (`render_box`: cells to pixels, 8-bit colour, the
+    layout's dB span below the strongest cell, quieter cells at the bottom colour) and read back with
+    `read_spectrogram_image` (below-scale pixels carry no power). Simulated signatures then share the
+    display chain of real spectrogram images (a classifier trained on them sees what it sees on the images).
+
+    Like the Glasgow script (``linspace(0, duration, n)`` over the window centres), the window centres are
+    stretched over 0..`duration_s` [s] (default: the layout's time axis, edge to edge) before drawing. The result's range
+    fields are empty (an image has none); `power` is the image's column power."""
+    from dataclasses import replace
+
+    from processing.spectrogram_image import read_spectrogram_image
+
+    p = np.asarray(sig.p_vt, dtype=np.float64) * np.asarray(sig.power, dtype=np.float64)[None, :]
+    with np.errstate(divide="ignore"):
+        db = 10.0 * np.log10(p)
+    t = np.asarray(sig.time, dtype=np.float64)
+    if t.size > 1:
+        t = np.linspace(0.0, float(duration_s), t.size) if duration_s is not None else \
+            np.linspace(layout.time_left, layout.time_right, t.size)
+    box = render_box(sig.velocity, t, db, layout)
+    rgb = np.empty((layout.height, layout.width, 3), np.uint8)
+    rgb[...] = layout.background_rgb
+    rgb[layout.box_top:layout.box_bottom + 1, layout.box_left:layout.box_right + 1] = box
+    out = read_spectrogram_image(rgb, layout, name="<simulated>").signature
+    return replace(out, range=np.zeros(0), range_distribution=np.zeros((0, out.time.size)))

@@ -68,9 +68,21 @@ def add_motion_args(p) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
+RADAR_PRESETS = ("seed", "glasgow")
+
+
 def add_radar_args(p) -> None:
-    """--radar-config and the mutually exclusive --direction / --angle-deg (read by `load_radar`)."""
-    p.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
+    """--radar/--radar-config, the Glasgow geometry and the mutually exclusive --direction / --angle-deg
+    (read by `load_radar`)."""
+    r = p.add_mutually_exclusive_group()
+    r.add_argument("--radar", choices=RADAR_PRESETS, help="radar preset: seed (default; the seed's 2x2 at "
+                   "24.125 GHz) or glasgow (one 5.8 GHz Ancortek 580AD with Yagis and the Glasgow DSP, "
+                   "Radar.glasgow)")
+    r.add_argument("--radar-config", type=Path, help="YAML/JSON radar configuration (waveform, dsp, links)")
+    p.add_argument("--radar-height", type=finite_float, help="--radar glasgow: antenna height [m], 0.5-2 "
+                   "(default 1.0)")
+    p.add_argument("--radar-distance", type=finite_float, help="--radar glasgow: distance to the person [m], "
+                   "1-4 (default 2.5)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--direction", type=int, default=1, help="seed direction 1..18 (Radar 1 at 20(k-1) deg)")
     g.add_argument("--angle-deg", type=finite_float, help="rotate all radars by this angle about z instead [deg]")
@@ -125,13 +137,22 @@ def parse_options(items: list[str] | None, per_backend: bool = False) -> dict:
 
 
 def load_radar(args):
-    """The radar of --radar-config (default: the seed's 2x2) rotated by --angle-deg or --direction."""
+    """The radar of --radar (preset) or --radar-config (default: the seed's 2x2) rotated by --angle-deg or
+    --direction. Raises UserError (or ConfigError for a Glasgow height/distance out of range), one line."""
     from rtchannel.radar import RadarConfig, direction_angles
 
     if args.radar_config is not None and not args.radar_config.is_file():
         raise UserError(f"radar config file not found: {args.radar_config}")
+    preset = getattr(args, "radar", None)
+    geometry = {k: v for k, v in (("height_m", getattr(args, "radar_height", None)),
+                                  ("distance_m", getattr(args, "radar_distance", None))) if v is not None}
+    if geometry and preset != "glasgow":
+        raise UserError("--radar-height/--radar-distance apply to --radar glasgow only")
     try:
-        radar = RadarConfig.from_file(args.radar_config) if args.radar_config else RadarConfig()
+        if preset == "glasgow":
+            radar = RadarConfig.glasgow(**geometry)
+        else:
+            radar = RadarConfig.from_file(args.radar_config) if args.radar_config else RadarConfig()
     except ValidationError as e:
         raise UserError(validation_line(e, f"radar config {args.radar_config}")) from None
     if args.angle_deg is not None and not (math.isfinite(args.angle_deg) and abs(args.angle_deg) <= 3600):

@@ -57,13 +57,18 @@ def build_motion(m: dict) -> Motion:
     """The augmented motion of an item's motion dict (cached per process by its key)."""
     def make():
         from rtchannel.motion.augment import augment
+        from rtchannel.motion.compose import back_and_forth, fit_clip
 
-        motion = augment(_base_motion(m), time_scale=m["time_scale"], mirror=m["mirror"],
+        motion = augment(_base_motion(m), time_scale=m["time_scale"], mirror=m["mirror"], trim=m.get("trim"),
                          heading_deg=m["heading_deg"], start=None if m["start"] == "auto" else m["start"])
+        if m.get("walk_legs", 1) > 1:
+            motion = back_and_forth(motion, m["walk_legs"], m["walk_turn_s"])
         if m["start"] == "auto" and m["activity"] == "walk":
             # a walk centred on the origin: it passes the room centre whatever its heading and length
             mid = 0.5 * (motion.positions[0, 0, :2] + motion.positions[-1, 0, :2])
             motion = motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
+        if m.get("clip_s") is not None:
+            motion = fit_clip(motion, m["clip_s"], m["clip_lead"])
         return motion
     # keyed by the whole motion dict, not m["key"]: motion ids repeat across plans ("fall-00-0000-m00" of
     # any plan), and a process that ran another plan first reused that plan's motion (different bytes)
@@ -96,6 +101,10 @@ class _Job:
         self.options = dict(item.backend_options)
         if item.backend == "points":
             self.options["gains"] = self.gains
+        elif item.chair != "none":  # mesh backends: furniture (the points backend is free space)
+            from rtchannel.scene.chair_fit import scene_for
+
+            self.options["scene"] = scene_for(self.motion, self.options.get("scene"), item.chair)
         self.signal_layer = item.snr_db is not None or item.clutter is not None
         self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
         self.clutter_info = {}
@@ -130,6 +139,11 @@ class _Job:
                 if iq is not None:
                     iq = (iq * np.float32(overall)).astype(np.complex64)
                 sig = replace(sig, power=sig.power * overall ** 2)  # normalised distributions are unchanged
+            if item.image_layout == "glasgow":  # the display chain of the real images (40 dB span, 8-bit colour)
+                from processing.spectrogram_image import glasgow_layout
+                from processing.spectrogram_image_writer import through_image
+
+                sig = through_image(sig, glasgow_layout(float(item.motion["clip_s"])))
             arrays = signature_arrays(sig)
             if item.keep_iq:
                 arrays["iq"] = np.asarray(iq, dtype=np.complex64)

@@ -49,12 +49,19 @@ class Source(_Model):
     pattern: str = Field("**/*", description="files: glob inside a folder (only .bvh/.c3d are used)")
     activity: str | None = Field(None, description="files: label, or 'from_folder' (the parent folder name)")
     options: dict[str, Any] = Field(default_factory=dict, description="files: load_motion keyword arguments")
+    trim: tuple[float, float | None] | None = Field(None, description="files: (t0, t1) seconds of each file to "
+                                                    "keep (t1 null = to the end), e.g. one part of a take")
+    fall_directions: list[Literal["forward", "left", "right"]] = Field(
+        ["forward", "left", "right"], min_length=1, description="procedural fall: directions the variants "
+        "cycle through")
 
     @model_validator(mode="after")
     def _one_kind(self) -> "Source":
         if (self.procedural is None) == (self.files is None):
             raise ValueError("give exactly one of 'procedural' (an activity) or 'files' (a path)")
         if self.procedural is not None:
+            if self.trim is not None:
+                raise ValueError("trim applies to motion files; procedural motions take params (duration, pads)")
             bad = sorted(set(self.params) - (set(ProceduralParams.model_fields) - _RESERVED_PROC))
             if bad:
                 raise ValueError(f"params: {bad[0]!r} is not a procedural parameter here (height, heading, "
@@ -81,6 +88,30 @@ class MotionLayer(_Model):
     starts: list[Literal["auto"] | tuple[Scalar, Scalar]] = Field(
         ["auto"], min_length=1, description="first-frame hips (x, y) [m]; auto: walks centred on the origin")
     fps: float = Field(60.0, ge=10, le=2000, description="motion frame rate [Hz]")
+    walk_legs: int = Field(1, ge=1, le=20, description="walks go back and forth: this many passes of each walk, "
+                           "joined by turns on the spot (rtchannel.motion.compose.back_and_forth)")
+    walk_turn_s: Scalar = Field(0.8, description="duration of one turn between walk legs [s] (or a range)")
+    clip_s: dict[str, float] = Field(default_factory=dict, description="recording length [s] per activity ('*': "
+                                     "any other): motions are padded with their first/last pose (split drawn "
+                                     "per motion) or cut to it, as real fixed-length recordings")
+
+    @field_validator("clip_s")
+    @classmethod
+    def _clips(cls, v):
+        for k, x in v.items():
+            if k != "*" and k not in ACTIVITIES:
+                raise ValueError(f"clip_s: {k!r} is not an activity ({', '.join(ACTIVITIES)}) or '*'")
+            if not 0.5 <= x <= 600:
+                raise ValueError(f"clip_s.{k}: {x} s outside 0.5-600 s")
+        return v
+
+    @field_validator("walk_turn_s")
+    @classmethod
+    def _turn(cls, v):
+        for x in (v if isinstance(v, tuple) else (v,)):
+            if not 0.1 <= x <= 10:
+                raise ValueError(f"walk_turn_s {x} s outside 0.1-10 s")
+        return v
 
     @field_validator("heights", "time_scales", "headings_deg")
     @classmethod
@@ -145,6 +176,28 @@ class PhysicalLayer(_Model):
     waveforms: list[Waveform] = Field(default_factory=lambda: [Waveform()], min_length=1)
     dsp: DSPConfig = Field(default_factory=DSPConfig)
     link_sets: list[LinkSet] = Field(default_factory=_seed_link_set, min_length=1)
+    radar: Literal["seed", "glasgow"] = Field("seed", description="radar kit: seed (Ancortek 2400T2R4 horns, "
+                                              "24 GHz defaults) or glasgow (Radar.glasgow: 5.8 GHz 580AD Yagis "
+                                              "looking horizontally at the z axis; waveform and DSP default to "
+                                              "the Glasgow ones)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _radar_defaults(cls, data):
+        if isinstance(data, dict) and data.get("radar") == "glasgow":
+            from rtchannel.radar import GLASGOW_WAVEFORM, glasgow_dsp
+
+            data = {"waveforms": [GLASGOW_WAVEFORM], "dsp": glasgow_dsp(), **data}
+        return data
+
+    def kit(self, links: list[Link]) -> dict:
+        """Antenna and receiver fields of the radar dict for a link set (empty: RadarConfig's defaults)."""
+        if self.radar != "glasgow":
+            return {}
+        from rtchannel.radar import RadarConfig
+
+        r = RadarConfig.glasgow(height_m=links[0].tx_pos[2], distance_m=2.5)  # boresight at the antenna height
+        return {"antenna": r.antenna.model_dump(mode="json"), "receiver": r.receiver.model_dump(mode="json")}
 
     @model_validator(mode="after")
     def _angles(self) -> "PhysicalLayer":
@@ -223,6 +276,9 @@ class SignalLayer(_Model):
 class Storage(_Model):
     items_per_shard: int = Field(16, ge=1, le=10000, description="work items per task and HDF5 shard")
     keep_iq: bool = Field(False, description="also store raw IQ (complex64; large)")
+    image_layout: Literal["glasgow"] | None = Field(
+        None, description="store each signature as the real images show it: drawn in this layout and read "
+        "back (processing.spectrogram_image_writer.through_image); glasgow needs clip_s of 5 or 10 s")
 
 
 class Plan(_Model):
@@ -232,10 +288,23 @@ class Plan(_Model):
     seed: int = Field(0, ge=0, description="plan seed: every random draw derives from it")
     backend: str = Field("points", min_length=1)
     backend_options: dict[str, Any] = Field(default_factory=dict)
+    chair: Literal["auto", "none"] = Field("none", description="mesh backends: auto puts a chair under sit and "
+                                           "stand motions (rtchannel.scene.chair_fit.scene_for), as --chair auto")
     motion: MotionLayer
     physical: PhysicalLayer = Field(default_factory=PhysicalLayer)
     signal: SignalLayer = Field(default_factory=SignalLayer)
     storage: Storage = Field(default_factory=Storage)
+
+    @model_validator(mode="after")
+    def _image_clips(self) -> "Plan":
+        if self.storage.image_layout == "glasgow":
+            clips = self.motion.clip_s
+            acts = {s.procedural or s.activity for s in self.motion.sources}
+            missing = sorted(a for a in acts if clips.get(a, clips.get("*")) not in (5.0, 10.0))
+            if missing:
+                raise ValueError(f"storage.image_layout glasgow: motion.clip_s must give {missing[0]} a length of "
+                                 "5 or 10 s (the Glasgow images' lengths)")
+        return self
 
     def digest(self) -> str:
         """Short sha256 of the normalised plan (identifies the dataset a folder holds)."""
@@ -296,6 +365,8 @@ class WorkItem:
     snr_db: float | None
     clutter: dict | None
     keep_iq: bool
+    image_layout: str | None = None
+    chair: str = "none"
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -341,8 +412,9 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
                     err = e.errors()[0]
                     raise ValueError(f"motion.sources.{si}.params.{'.'.join(map(str, err['loc'])) or '(root)'}: "
                                      f"{err['msg']} (drawn value {err.get('input')!r})") from None
-                # generator seed = v (mod 3): falls cycle forward / left / right over the variants
-                gen_seed = 3 * int(rng.integers(0, 2 ** 20)) + v % 3
+                # generator seed (mod 3) = fall direction 0 forward, 1 left, 2 right, cycled over the variants
+                fall = ("forward", "left", "right").index(src.fall_directions[v % len(src.fall_directions)])
+                gen_seed = 3 * int(rng.integers(0, 2 ** 20)) + fall
                 base = {"kind": "procedural", "activity": act, "params": {**params, "seed": gen_seed}}
                 out.append((f"{act}-{si:02d}-{v:04d}", act, f"procedural:{act}#{si}.{v}", f"procedural:{act}", base))
         else:
@@ -354,6 +426,8 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
                                      f"({', '.join(ACTIVITIES)})")
                 rel = f.name if root.is_file() else str(f.relative_to(root))
                 base = {"kind": "file", "activity": act, "path": str(f), "options": dict(src.options)}
+                if src.trim is not None:
+                    base["trim"] = list(src.trim)
                 out.append((f"{act}-{si:02d}-{v:04d}", act, f"file:{rel}", rel, base))
     return out
 
@@ -377,9 +451,14 @@ def expand(plan: Plan) -> list[WorkItem]:
             start = st if st == "auto" else [float(_draw(x, rng)) for x in st]
             motion = {**base, "fps": ml.fps, "height": _draw(h, rng), "time_scale": float(_draw(ts, rng)),
                       "mirror": mirror, "heading_deg": float(_draw(hd, rng)), "start": start, "key": motion_id}
+            clip = ml.clip_s.get(act, ml.clip_s.get("*"))
+            if act == "walk" and ml.walk_legs > 1:
+                motion.update(walk_legs=ml.walk_legs, walk_turn_s=float(_draw(ml.walk_turn_s, rng)))
+            if clip is not None:  # drawn after the seed's draws: plans without clip_s keep their motions
+                motion.update(clip_s=float(clip), clip_lead=float(rng.uniform(0.0, 1.0)))
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
                 radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
-                         "links": [link.model_dump(mode="json") for link in ls.links]}
+                         "links": [link.model_dump(mode="json") for link in ls.links], **ph.kit(ls.links)}
                 for gi, (gs, snr, cl) in enumerate(sig_axes):
                     item_id = f"{motion_id}-p{pi:0{wp}d}-s{gi:0{ws}d}"
                     items.append(WorkItem(
@@ -388,6 +467,7 @@ def expand(plan: Plan) -> list[WorkItem]:
                         direction=direction, link_set=ls.name, backend=plan.backend,
                         backend_options=dict(plan.backend_options), gain_set=gs.model_dump(mode="json"),
                         snr_db=snr, clutter=None if cl is None else cl.model_dump(mode="json"),
-                        keep_iq=plan.storage.keep_iq))
+                        keep_iq=plan.storage.keep_iq, image_layout=plan.storage.image_layout,
+                        chair=plan.chair))
     items.sort(key=lambda it: it.item_id)
     return items

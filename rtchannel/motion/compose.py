@@ -1,0 +1,91 @@
+"""Motion composition: walks back and forth (legs joined by turns on the spot) and fixed-length clips.
+
+Real recordings have a fixed length (the Glasgow dataset: 5 s, walks 10 s) in which a walker goes
+toward and away from the radar several times; these helpers build such motions from one straight walk.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from rtchannel.body.skeleton import Motion
+
+ROOT = 0  # the hips: the rig's root joint
+
+
+def _rz(angle: float) -> np.ndarray:
+    return Rotation.from_euler("z", angle).as_matrix()
+
+
+def _about_vertical(motion: Motion, angle: float, centre_xy) -> Motion:
+    c = np.array([centre_xy[0], centre_xy[1], 0.0])
+    return motion.transformed(0.0, -c).transformed(angle, c)
+
+
+def turn_frames(pos_a, rot_a, pos_b, rot_b, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """`n` frames [n, J, 3], [n, J, 3, 3] strictly between pose A and pose B (B facing the other way): the
+    body turns 180 degrees about the vertical through its hips while its pose blends from A's to B's
+    (rotations by slerp, hips-relative positions linearly in a common heading) and its hips move from A's
+    to B's, with a smoothstep profile (at rest at both ends)."""
+    s = (np.arange(1, n + 1) / (n + 1))
+    s = s * s * (3 - 2 * s)
+    back = _rz(-np.pi)
+    off_a = pos_a - pos_a[ROOT]
+    off_b = (pos_b - pos_b[ROOT]) @ back.T  # B's pose seen in A's heading
+    rot_b = np.einsum("ab,jbc->jac", back, rot_b)
+    pos = np.empty((n, *pos_a.shape))
+    rot = np.empty((n, *rot_a.shape))
+    for j in range(pos_a.shape[0]):
+        key = Rotation.from_matrix(np.stack([rot_a[j], rot_b[j]]))
+        rot[:, j] = Slerp([0.0, 1.0], key)(s).as_matrix()
+    for k, sk in enumerate(s):
+        turn = _rz(np.pi * sk)
+        pos[k] = ((1 - sk) * off_a + sk * off_b) @ turn.T + (1 - sk) * pos_a[ROOT] + sk * pos_b[ROOT]
+        rot[k] = np.einsum("ab,jbc->jac", turn, rot[k])
+    return pos, rot
+
+
+def back_and_forth(leg: Motion, legs: int, turn_s: float) -> Motion:
+    """`legs` passes of the straight walk `leg`, every second one turned 180 degrees about the vertical
+    through the midpoint of its hips' path (so it returns to the start), joined by turns on the spot
+    lasting `turn_s` seconds (`turn_frames`). One leg returns `leg` unchanged."""
+    if not (isinstance(legs, (int, np.integer)) and 1 <= legs <= 100):
+        raise ValueError(f"legs must be an integer 1..100, got {legs!r}")
+    if not 0 < turn_s <= 10:
+        raise ValueError(f"turn_s must be in (0, 10] s, got {turn_s}")
+    if legs == 1:
+        return leg
+    mid = 0.5 * (leg.positions[0, ROOT, :2] + leg.positions[-1, ROOT, :2])
+    back = _about_vertical(leg, np.pi, mid)
+    n_turn = max(1, int(round(turn_s * leg.fps)) - 1)
+    pos, rot = [leg.positions], [leg.rotations]
+    for k in range(1, legs):
+        nxt = back if k % 2 else leg
+        tp, tr = turn_frames(pos[-1][-1], rot[-1][-1], nxt.positions[0], nxt.rotations[0], n_turn)
+        pos += [tp, nxt.positions]
+        rot += [tr, nxt.rotations]
+    return replace(leg, positions=np.concatenate(pos), rotations=np.concatenate(rot),
+                   params={**leg.params, "back_and_forth": {"legs": int(legs), "turn_s": float(turn_s)}})
+
+
+def fit_clip(motion: Motion, clip_s: float, lead: float = 0.5) -> Motion:
+    """The motion as a recording of exactly `clip_s` seconds: a shorter motion is padded by holding its
+    first and last pose (a share `lead` in [0, 1] of the padding before it), a longer one is cut after
+    `clip_s` seconds."""
+    if not 0 < clip_s <= 600:
+        raise ValueError(f"clip_s must be in (0, 600] s, got {clip_s}")
+    if not 0 <= lead <= 1:
+        raise ValueError(f"lead must be in [0, 1], got {lead}")
+    n = int(round(clip_s * motion.fps)) + 1
+    if motion.n_frames >= n:
+        pos, rot = motion.positions[:n], motion.rotations[:n]
+    else:
+        pad = n - motion.n_frames
+        before = int(round(lead * pad))
+        idx = np.concatenate([np.zeros(before, int), np.arange(motion.n_frames),
+                              np.full(pad - before, motion.n_frames - 1)])
+        pos, rot = motion.positions[idx], motion.rotations[idx]
+    return replace(motion, positions=pos, rotations=rot,
+                   params={**motion.params, "clip": {"clip_s": float(clip_s), "lead": float(lead)}})

@@ -1,0 +1,149 @@
+"""The `glasgow` dataset preset and the motion composition it relies on (back-and-forth walks, fixed clips)."""
+import numpy as np
+import pytest
+
+from rtchannel.body.skeleton import Motion
+from rtchannel.cli import main
+from rtchannel.dataset.items import build_motion
+from rtchannel.dataset.plan import expand, load_plan
+from rtchannel.motion.compose import back_and_forth, fit_clip
+from rtchannel.radar import RadarConfig
+
+# Largest per-frame step [m] of any joint at 60 fps: 0.12 m = 7.2 m/s. The fastest body part in walking, the
+# swinging foot, peaks at ~5 m/s (0.08 m per frame); a join without a turn (a pose switched to one facing
+# the other way) would move the hands and feet by 0.3-1 m in one frame.
+MAX_STEP_M = 0.12
+
+
+@pytest.fixture(scope="module")
+def items():
+    return expand(load_plan("glasgow"))
+
+
+def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
+    acts = {it.activity for it in items}
+    assert acts == {"walk", "sit", "stand", "pick", "fall"}
+    counts = {a: sum(it.activity == a for it in items) for a in acts}
+    assert len(set(counts.values())) == 1  # balanced classes
+    for it in items[:: max(1, len(items) // 60)] + [it for it in items if it.motion["kind"] == "file"][:5]:
+        radar = RadarConfig.model_validate(it.radar)
+        wf = radar.waveform
+        assert (wf.carrier_hz, wf.bandwidth_hz, wf.pri_s, wf.samples_per_chirp) == (5.8e9, 400e6, 1e-3, 128)
+        assert radar.antenna.kind == "yagi" and radar.receiver.transmit_power_dbm == 18.0
+        assert radar.dsp.window_chirps == 200 and radar.dsp.velocity_crop_mps == 6.0
+        (link,) = radar.links
+        # the dataset's people are 1-4 m from the radar: the activity spot (origin) is
+        assert 1.0 <= np.hypot(*link.tx_pos[:2]) <= 4.0 and it.angle_deg == 0.0
+        # horizontal boresight toward the person's vertical axis
+        np.testing.assert_allclose(radar.antenna.boresight_unit(link.tx_pos), -link.tx_pos * [1, 1, 0]
+                                   / np.hypot(*link.tx_pos[:2]), atol=1e-12)
+        assert it.motion["clip_s"] == (10.0 if it.activity == "walk" else 5.0)
+    # real motion capture where it exists: walks and the two parts of 75_17
+    files = {(it.activity, it.source) for it in items if it.motion["kind"] == "file"}
+    assert {("sit", "75_17.bvh"), ("stand", "75_17.bvh")} <= files
+    assert sum(a == "walk" for a, _ in files) == 3
+    # frontal falls only: generator seed = 0 (mod 3) is the forward fall
+    assert all(it.motion["params"]["seed"] % 3 == 0 for it in items if it.activity == "fall")
+    # sit and stand get a chair on the mesh backends (the points backend is free space)
+    assert all(it.chair == "auto" for it in items)
+
+
+@pytest.mark.parametrize("activity, kind", [("walk", "procedural"), ("walk", "file"), ("stand", "file")])
+def test_built_motions_have_the_clip_length_and_walks_go_back_and_forth(items, activity, kind):
+    it = next(i for i in items if i.activity == activity and i.motion["kind"] == kind)
+    m = build_motion(it.motion)
+    assert m.duration == pytest.approx(it.motion["clip_s"], abs=0.5 / m.fps)
+    assert np.abs(np.diff(m.positions, axis=0)).max() <= MAX_STEP_M
+    if activity == "walk":
+        # radial (x) hips velocity over 0.5 s steps: toward the radar (+x), away, toward again
+        x = m.positions[:: int(m.fps // 2), 0, 0]
+        signs = np.sign(np.diff(x)[np.abs(np.diff(x)) > 0.2])  # moving > 0.4 m/s
+        runs = signs[np.r_[True, signs[1:] != signs[:-1]]]
+        assert list(runs[:3]) == [1, -1, 1]
+
+
+def test_back_and_forth_returns_along_its_path_and_fit_clip_holds_poses():
+    leg = Motion.procedural("walk", speed=1.2, distance=2.0, pad_before=0.1, pad_after=0.1, seed=1)
+    two = back_and_forth(leg, 2, 0.8)
+    turn_frames = two.n_frames - 2 * leg.n_frames
+    assert turn_frames == round(0.8 * leg.fps) - 1
+    # the second leg ends where the first began (turned 180 deg about the path's midpoint), within the
+    # few cm the procedural gait's start and end feet placements differ by
+    np.testing.assert_allclose(two.positions[-1, 0, :2], leg.positions[0, 0, :2], atol=0.05)
+    assert np.abs(np.diff(two.positions, axis=0)).max() <= MAX_STEP_M
+    assert back_and_forth(leg, 1, 0.8) is leg
+    short = fit_clip(leg, leg.duration + 2.0, lead=0.25)
+    assert short.n_frames == round((leg.duration + 2.0) * leg.fps) + 1
+    before = int(round(0.25 * (short.n_frames - leg.n_frames)))
+    np.testing.assert_array_equal(short.positions[:before + 1], np.broadcast_to(leg.positions[0], (before + 1,
+                                                                                                    *leg.positions.shape[1:])))
+    np.testing.assert_array_equal(short.positions[-1], leg.positions[-1])
+    cut = fit_clip(leg, 1.0)
+    assert cut.n_frames == round(leg.fps) + 1
+    with pytest.raises(ValueError):
+        fit_clip(leg, 1.0, lead=2.0)
+
+
+def test_cli_radar_preset_errors_are_one_line(tmp_path, capsys):
+    assert main(["simulate", "--radar", "glasgow", "--radar-distance", "6", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "distance_m" in err
+    assert main(["simulate", "--radar-height", "1", "--out", str(tmp_path)]) == 2
+    assert "--radar glasgow only" in capsys.readouterr().err
+
+
+def test_through_image_keeps_what_the_image_shows_and_drops_what_is_below_its_span():
+    """Columns 10 dB below the strongest one keep their peak velocity (within one image row, 12 m/s / 317 =
+    0.038 m/s, plus half a signature bin); columns 50 dB below it are under the 40 dB span: empty."""
+    from processing.dsp import Signature
+    from processing.spectrogram_image import glasgow_layout
+    from processing.spectrogram_image_writer import through_image
+
+    v = np.linspace(-6, 6, 373)
+    t = np.linspace(0.1, 4.9, 200)
+    v_true = np.where(t < 2.5, 1.0, -2.0)
+    p = np.exp(-0.5 * ((v[:, None] - v_true[None, :]) / 0.1) ** 2)
+    p /= p.sum(axis=0)
+    power = np.where((t > 1.0) & (t < 4.0), 1.0, np.where(t <= 1.0, 0.1, 1e-5))  # 0, -10, -50 dB
+    sig = Signature(time=t, velocity=v, p_vt=p, mean_velocity=np.zeros_like(t), range=np.zeros(0),
+                    range_distribution=np.zeros((0, t.size)), valid=np.ones(t.size, bool), power=power)
+    out = through_image(sig, glasgow_layout(5.0))
+    assert out.p_vt.shape == (317, 383) and out.time[0] < 0.02 and out.time[-1] > 4.98
+    shown = out.time < 4.0  # stretched over 0-5 s: the -50 dB part starts at 4.0 + 0.1 * (5 / 4.8) s
+    peaks = out.velocity[out.p_vt.argmax(axis=0)]
+    truth = np.where(out.time < 2.5, 1.0, -2.0)
+    assert np.all(np.abs(peaks[shown] - truth[shown]) <= 12 / 317 + 0.016)
+    assert not out.valid[out.time > 4.25].any() and out.p_vt[:, out.time > 4.25].sum() == 0
+    assert np.isfinite(out.p_vt).all()
+
+
+def test_image_layout_needs_glasgow_clip_lengths(tmp_path):
+    import yaml
+
+    from rtchannel.dataset.plan import PRESETS_DIR
+
+    plan = yaml.safe_load((PRESETS_DIR / "glasgow.yaml").read_text())
+    plan["motion"]["sources"] = [s for s in plan["motion"]["sources"] if "procedural" in s]
+    plan["motion"]["clip_s"] = {"walk": 10.0, "*": 6.0}
+    p = tmp_path / "g.yaml"
+    p.write_text(yaml.safe_dump(plan))
+    with pytest.raises(ValueError, match="clip_s must give .* a length of 5 or 10 s"):
+        load_plan(p)
+    plan["motion"]["clip_s"] = {"walk": 10.0, "*": 5.0}
+    p.write_text(yaml.safe_dump(plan))
+    assert load_plan(p).storage.image_layout == "glasgow"
+
+
+def test_stored_item_is_on_the_glasgow_image_grid(items):
+    """With storage.image_layout glasgow an item holds what a 5 s Glasgow image holds: 317 velocity rows
+    between the frame rows at +-6 m/s (row 36 and 354: 12 m/s / 318 = 0.0377 m/s per row, so the outer row
+    centres are at +-(6 - 0.0377) m/s), 383 columns over 0-5 s, no range data, finite p(v,t)."""
+    from rtchannel.dataset.items import run_item
+
+    it = next(i for i in items if i.activity == "pick")
+    arrays = run_item(it)["links"]["radar1"]
+    v, t = arrays["velocity"], arrays["time"]
+    assert arrays["p_vt"].shape == (317, 383) and arrays["range"].size == 0
+    assert v[0] == pytest.approx(-6 + 12 / 318, abs=1e-4) and v[-1] == pytest.approx(6 - 12 / 318, abs=1e-4)
+    assert 0 < t[0] < 0.02 and 4.98 < t[-1] < 5.0
+    assert np.isfinite(arrays["p_vt"]).all() and arrays["valid"].any()
