@@ -33,7 +33,10 @@ def normalised_dtw(a: np.ndarray, b: np.ndarray, scale: float | None = None) -> 
             return 0.0
     if scale <= 0:
         raise ValueError("DTW scale must be positive")
-    return float(dtw.distance_fast(a, b) / np.sqrt(max(a.size, b.size)) / scale)
+    # use_pruning=False: dtaidistance 2.5's default pruning (Euclidean upper bound) returns inf for some
+    # pairs whose optimal path is near the diagonal (measured: a near-zero simulated curve against a real
+    # sit-down gave inf, the unpruned C DTW 4.74); the unpruned C loop is exact.
+    return float(dtw.distance_fast(a, b, use_pruning=False) / np.sqrt(max(a.size, b.size)) / scale)
 
 
 def _column_distributions(p_vt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

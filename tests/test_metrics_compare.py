@@ -106,3 +106,18 @@ def test_ensemble_mean_and_half_split_error():
     assert abs(half["rmse_m_s"] / 2 - 0.0125) < 0.15 * 0.0125, half["rmse_m_s"] / 2
     full_err = np.sqrt(np.mean((mean["r1"].mean_velocity - truth) ** 2))
     assert abs(full_err - 0.0125) < 0.15 * 0.0125, full_err
+
+
+def test_dtw_is_finite_where_pruning_failed():
+    """dtaidistance 2.5's pruned DTW returned inf for this pair (a flat simulated curve against a real
+    Glasgow sit-down's mean velocity, 311 samples at 16 ms); the DTW of two finite curves is finite and at
+    most their Euclidean distance (the diagonal is one warping path)."""
+    from pathlib import Path
+
+    from processing.metrics import normalised_dtw
+
+    b = np.load(Path(__file__).parent / "data" / "dtw_pruning_case.npy")
+    a = np.zeros_like(b)
+    a[:100] = 1e-16
+    d = normalised_dtw(a, b, scale=1.0) * np.sqrt(b.size)
+    assert np.isfinite(d) and d <= np.linalg.norm(a - b) + 1e-12
