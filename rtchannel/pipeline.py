@@ -100,6 +100,8 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
     `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (signal-layer augmentation),
     and the kept IQ is the transformed one.
     """
+    from threadpoolctl import threadpool_limits
+
     from processing.receiver import noise_power_per_sample, receive
     from processing.synthesis_projection import synthesise_projection
 
@@ -108,36 +110,40 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
     wf, dsp = radar.waveform, radar.dsp
     index = {link.name: i for i, link in enumerate(radar.links)}
     noise = None if radar.receiver is None else noise_power_per_sample(radar.receiver, wf.fs)
-    for name, ps in paths.items():
-        seed = (int(noise_seed), index.get(name, 0))
-        t0 = time.perf_counter()
-        if not keep_iq and iq_transform is None:
-            chirp_t, proj = synthesise_projection(ps, wf, dsp, receiver=radar.receiver, seed=seed, method=synthesis,
-                                                  oversample=oversample, progress=progress)
-            t1 = time.perf_counter()
-            sig = signatures_from_projection(proj, dsp, noise)
-            iq = None
-        else:
-            t_parts, iq_parts = [], []
-            done = 0
-            for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
-                if radar.receiver is not None:
-                    iq = receive(iq, radar.receiver, wf, seed=seed, first_chirp=done)
-                done += t.size
-                t_parts.append(t)
-                iq_parts.append(iq)
-                if progress is not None:
-                    progress(t.size)
-            chirp_t = np.concatenate(t_parts) if t_parts else np.zeros(0)
-            iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
-            if iq_transform is not None:
-                iq = iq_transform(name, iq)
-            t1 = time.perf_counter()
-            sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0, noise_power=noise)
-        t2 = time.perf_counter()
-        timing["synthesis"] = timing.get("synthesis", 0.0) + t1 - t0
-        timing["dsp"] = timing.get("dsp", 0.0) + t2 - t1
-        out[name] = LinkResult(signature=sig, chirp_times=chirp_t, iq=iq if keep_iq else None)
+    # One BLAS thread: the synthesisers' and DSP's small matrix products (fast-time projections, N = 128)
+    # gain nothing from threads, and OpenBLAS splits a product's sums by its thread count, so the same seed
+    # would give other last bits on a machine with another core count (tests/test_dsp_determinism.py).
+    with threadpool_limits(limits=1, user_api="blas"):
+        for name, ps in paths.items():
+            seed = (int(noise_seed), index.get(name, 0))
+            t0 = time.perf_counter()
+            if not keep_iq and iq_transform is None:
+                chirp_t, proj = synthesise_projection(ps, wf, dsp, receiver=radar.receiver, seed=seed,
+                                                      method=synthesis, oversample=oversample, progress=progress)
+                t1 = time.perf_counter()
+                sig = signatures_from_projection(proj, dsp, noise)
+                iq = None
+            else:
+                t_parts, iq_parts = [], []
+                done = 0
+                for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
+                    if radar.receiver is not None:
+                        iq = receive(iq, radar.receiver, wf, seed=seed, first_chirp=done)
+                    done += t.size
+                    t_parts.append(t)
+                    iq_parts.append(iq)
+                    if progress is not None:
+                        progress(t.size)
+                chirp_t = np.concatenate(t_parts) if t_parts else np.zeros(0)
+                iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+                if iq_transform is not None:
+                    iq = iq_transform(name, iq)
+                t1 = time.perf_counter()
+                sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0, noise_power=noise)
+            t2 = time.perf_counter()
+            timing["synthesis"] = timing.get("synthesis", 0.0) + t1 - t0
+            timing["dsp"] = timing.get("dsp", 0.0) + t2 - t1
+            out[name] = LinkResult(signature=sig, chirp_times=chirp_t, iq=iq if keep_iq else None)
     return out
 
 

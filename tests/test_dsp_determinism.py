@@ -53,3 +53,35 @@ def _digest(threads: int) -> str:
 def test_same_bytes_with_one_and_two_blas_threads():
     one, two = _digest(1), _digest(2)
     assert len(one) == 64 and one == two
+
+
+CHAIN = r"""
+import hashlib
+import numpy as np
+from rtchannel.motion.procedural import generate
+from rtchannel.pipeline import simulate
+
+h = hashlib.sha256()
+m = generate("fall", duration=0.8, pad_before=0.2, pad_after=0.2)
+for backend, opts in (("points", {}), ("facets", {"lod": "2k"})):
+    for keep in (False, True):
+        res = simulate(m, backend=backend, keep_iq=keep, **opts)
+        for s in res.signatures.values():
+            for a in (s.p_vt, s.mean_velocity, s.range_distribution, s.power):
+                h.update(np.ascontiguousarray(a).tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_whole_chain_same_bytes_with_one_and_two_blas_threads():
+    """`simulate` (synthesis projections, receiver noise, DSP; both routes, points and facets): the
+    pipeline pins BLAS to one thread, so the environment's thread count cannot change a byte."""
+    digests = []
+    for threads in (1, 2):
+        env = {**os.environ, "PYTHONPATH": str(REPO), "OPENBLAS_NUM_THREADS": str(threads),
+               "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
+        run = subprocess.run([sys.executable, "-c", CHAIN], cwd=REPO, env=env, capture_output=True, text=True,
+                             timeout=900)
+        assert run.returncode == 0, run.stderr[-2000:]
+        digests.append(run.stdout.strip().splitlines()[-1])
+    assert len(digests[0]) == 64 and digests[0] == digests[1]
