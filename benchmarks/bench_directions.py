@@ -38,7 +38,8 @@ def main() -> None:
         shared.append(time.perf_counter() - t0)
     a, b = statistics.median(sep), statistics.median(shared)
     print(json.dumps({"backend": args.backend, "directions": args.directions, "simulated_s": args.duration,
-                      "separate_s": round(a, 3), "shared_s": round(b, 3), "separate_per_direction_s": round(a / len(radars), 3),
+                      "separate_s": round(a, 3), "shared_s": round(b, 3),
+                      "separate_per_direction_s": round(a / len(radars), 3),
                       "shared_per_direction_s": round(b / len(radars), 3), "speed_up": round(a / b, 2)}, indent=1))
 
 

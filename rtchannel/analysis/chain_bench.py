@@ -34,7 +34,8 @@ def bench_chain(backend: str = "points", repeats: int = 7, duration: float = 5.0
         res = simulate(motion, radar, backend=backend, keep_iq=keep_iq, **options)
         runs.append({"total": time.perf_counter() - t0, **res.timing})
     med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
-    return {"benchmark": backend, "options": options, "keep_iq": keep_iq, "simulated_s": motion.duration, "repeats": repeats,
+    return {"benchmark": backend, "options": options, "keep_iq": keep_iq, "simulated_s": motion.duration,
+            "repeats": repeats,
             "median_s": med, "speed_x_real_time": motion.duration / med["total"], "links": len(radar.links),
             "samples_per_chirp": radar.waveform.samples_per_chirp}
 
