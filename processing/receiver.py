@@ -198,6 +198,28 @@ def receive(iq: np.ndarray, cfg: ReceiverConfig, wf: Waveform, seed, first_chirp
     return out
 
 
+
+def received_iq(paths, wf: Waveform, cfg: "ReceiverConfig | None", seed, chunk_chirps: int = 1024,
+                method: str = "auto", oversample: int | None = None, progress=None) -> tuple[np.ndarray, np.ndarray]:
+    """(chirp start times [C] s, IQ [C, N]) of a path set synthesised chunk by chunk and, with a receiver
+    `cfg`, received (`receive`: sqrt(W), leakage, thermal noise keyed by chirp index, so chunking never
+    changes it); without one the IQ stays in units of the transmit power. `progress(n chirps)` per chunk."""
+    from processing.synthesis import iter_synthesis  # scipy: only when raw IQ is formed
+
+    t_parts, iq_parts, done = [], [], 0
+    for t, iq in iter_synthesis(paths, wf, chunk_chirps=chunk_chirps, method=method, oversample=oversample):
+        if cfg is not None:
+            iq = receive(iq, cfg, wf, seed=seed, first_chirp=done)
+        done += t.size
+        t_parts.append(t)
+        iq_parts.append(iq)
+        if progress is not None:
+            progress(t.size)
+    t_all = np.concatenate(t_parts) if t_parts else np.zeros(0)
+    iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+    return t_all, iq
+
+
 def _taper(name: str, n: int) -> np.ndarray:
     return get_window(name, n, fftbins=True).astype(np.float64)
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from processing.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
 from processing.pathset import PathSet
-from processing.synthesis import chirp_times, iter_synthesis, iter_weighted, uses_grid
+from processing.synthesis import chirp_times, iter_weighted, uses_grid
 from processing.waveform import Waveform
 
 
@@ -63,21 +63,11 @@ def synthesise_projection(paths: PathSet, wf: Waveform, cfg, receiver=None, seed
         method, chunk_chirps, oversample: as `synthesis.iter_synthesis`.
         progress: optional callable receiving the number of chirps done after each chunk.
     """
-    from processing.receiver import leakage_iq, receive, receiver_noise, transmit_power_w
+    from processing.receiver import leakage_iq, received_iq, receiver_noise, transmit_power_w
 
     if not uses_grid(paths, method):
-        t_parts, iq_parts = [], []
-        done = 0
-        for t, iq in iter_synthesis(paths, wf, chunk_chirps=chunk_chirps, method=method, oversample=oversample):
-            if receiver is not None:
-                iq = receive(iq, receiver, wf, seed=seed, first_chirp=done)
-            done += t.size
-            t_parts.append(t)
-            iq_parts.append(iq)
-            if progress is not None:
-                progress(t.size)
-        t_all = np.concatenate(t_parts) if t_parts else np.zeros(0)
-        iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+        t_all, iq = received_iq(paths, wf, receiver, seed, chunk_chirps=chunk_chirps, method=method,
+                                oversample=oversample, progress=progress)
         return t_all, project(iq, wf, cfg, t0=float(t_all[0]) if t_all.size else 0.0)
     from processing.synthesis_grid import project_rows  # numba: imported only on the grid route
 

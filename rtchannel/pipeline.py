@@ -15,7 +15,6 @@ import numpy as np
 from processing.dsp import Signature, signatures, signatures_from_projection
 from processing.dsp_config import check_recording
 from processing.pathset import PathSet
-from processing.synthesis import iter_synthesis
 from rtchannel.backends import MESH_BACKENDS, backend_function
 from rtchannel.body.skeleton import Motion
 from rtchannel.radar import RadarConfig
@@ -102,7 +101,7 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
     """
     from threadpoolctl import threadpool_limits
 
-    from processing.receiver import noise_power_per_sample, receive
+    from processing.receiver import noise_power_per_sample, received_iq
     from processing.synthesis_projection import synthesise_projection
 
     timing = {} if timing is None else timing
@@ -124,18 +123,8 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
                 sig = signatures_from_projection(proj, dsp, noise)
                 iq = None
             else:
-                t_parts, iq_parts = [], []
-                done = 0
-                for t, iq in iter_synthesis(ps, wf, method=synthesis, oversample=oversample):
-                    if radar.receiver is not None:
-                        iq = receive(iq, radar.receiver, wf, seed=seed, first_chirp=done)
-                    done += t.size
-                    t_parts.append(t)
-                    iq_parts.append(iq)
-                    if progress is not None:
-                        progress(t.size)
-                chirp_t = np.concatenate(t_parts) if t_parts else np.zeros(0)
-                iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+                chirp_t, iq = received_iq(ps, wf, radar.receiver, seed, method=synthesis,
+                                          oversample=oversample, progress=progress)
                 if iq_transform is not None:
                     iq = iq_transform(name, iq)
                 t1 = time.perf_counter()
@@ -145,6 +134,19 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
             timing["dsp"] = timing.get("dsp", 0.0) + t2 - t1
             out[name] = LinkResult(signature=sig, chirp_times=chirp_t, iq=iq if keep_iq else None)
     return out
+
+
+def _described(backend_options: dict) -> dict:
+    """Backend options as stored in a result's config (objects by their `describe()`, no timing sinks)."""
+    return {k: (v.describe() if hasattr(v, "describe") else v) for k, v in backend_options.items()
+            if k not in ("timing", "stats")}
+
+
+def _config(motion: Motion, radar: RadarConfig, backend: str, options: dict, synthesis: str, noise_seed: int) -> dict:
+    """Every parameter that made a result (JSON-serialisable; stored by `SimulationResult.save`)."""
+    return {"activity": motion.activity, "motion": motion.params, "radar": radar.model_dump(mode="json"),
+            "backend": backend, "backend_options": options, "synthesis": synthesis, "noise_seed": noise_seed,
+            "iq_unit": "sqrt(W) at the ADC" if radar.receiver is not None else "sqrt(transmit power)"}
 
 
 def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
@@ -185,11 +187,7 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
         noise_seed = int(motion.params.get("seed", 0) or 0)
     links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing, synthesis=synthesis,
                           iq_transform=iq_transform, noise_seed=noise_seed)
-    options = {k: (v.describe() if hasattr(v, "describe") else v) for k, v in backend_options.items()
-               if k not in ("timing", "stats")}
-    config = {"activity": motion.activity, "motion": motion.params, "radar": radar.model_dump(mode="json"),
-              "backend": backend, "backend_options": options, "synthesis": synthesis, "noise_seed": noise_seed,
-              "iq_unit": "sqrt(W) at the ADC" if radar.receiver is not None else "sqrt(transmit power)"}
+    config = _config(motion, radar, backend, _described(backend_options), synthesis, noise_seed)
     return SimulationResult(links=links, timing=timing, config=config)
 
 
@@ -239,8 +237,7 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
     t0 = time.perf_counter()
     paths = backend_paths(motion, union, backend, **backend_options)
     shared = (time.perf_counter() - t0) / n
-    options = {k: (v.describe() if hasattr(v, "describe") else v) for k, v in backend_options.items()
-               if k not in ("timing", "stats")}
+    options = _described(backend_options)
     results = []
     for i, r in enumerate(radars):
         mine = {lk.name: replace(paths[f"r{i}__{lk.name}"], link=lk.name) for lk in r.links}
@@ -248,9 +245,6 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
         timing = {"backend": shared}
         links = process_paths(mine, r, keep_iq=keep_iq, timing=timing, synthesis=synthesis,
                               iq_transform=iq_transforms[i], noise_seed=seed)
-        config = {"activity": motion.activity, "motion": motion.params, "radar": r.model_dump(mode="json"),
-                  "backend": backend, "backend_options": options, "synthesis": synthesis, "noise_seed": seed,
-                  "iq_unit": "sqrt(W) at the ADC" if r.receiver is not None else "sqrt(transmit power)",
-                  "traced_with_radars": n}
+        config = {**_config(motion, r, backend, options, synthesis, seed), "traced_with_radars": n}
         results.append(SimulationResult(links=links, timing=timing, config=config))
     return results
