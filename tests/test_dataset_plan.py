@@ -115,3 +115,20 @@ def test_seed_preset_reproduces_the_seed_structure(capsys):
     example = expand(load_plan(REPO / "examples" / "dataset_small.yaml"))
     assert len(example) == 48
     assert isinstance(Plan.model_json_schema(), dict)
+
+
+def test_sionna_subset_preset_holds_the_seed_motions():
+    """The cross-test's Sionna subset must differ from the seed preset only in the physical and signal
+    layers (6 of 18 directions, one gain set) and the backend: same motions, same radars per direction."""
+    def key(it):  # item ids are motion-pPP-sSS; PP counts the plan's own directions, so key by direction
+        return it.item_id.split("-p")[0], it.direction, it.gain_set["name"]
+
+    seed = {key(it): it for it in expand(load_plan("seed"))}
+    sub = expand(load_plan("seed_sionna_subset"))
+    assert len(sub) == 26 * 3 * 6 == 468
+    assert sorted({it.direction for it in sub}) == [1, 4, 7, 10, 13, 16]
+    for it in sub:
+        assert it.backend == "sionna" and it.backend_options == {"samples_per_src": 100000, "trace_fps": 20.0}
+        twin = seed[key(it)]
+        assert (it.motion, it.radar, it.angle_deg, it.activity) == (twin.motion, twin.radar, twin.angle_deg,
+                                                                    twin.activity)

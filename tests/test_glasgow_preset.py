@@ -1,4 +1,6 @@
 """The `glasgow` dataset preset and the motion composition it relies on (back-and-forth walks, fixed clips)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -13,6 +15,7 @@ from rtchannel.radar import RadarConfig
 # swinging foot, peaks at ~5 m/s (0.08 m per frame); a join without a turn (a pose switched to one facing
 # the other way) would move the hands and feet by 0.3-1 m in one frame.
 MAX_STEP_M = 0.12
+MOCAP_WALKS = Path(__file__).resolve().parents[1] / "data" / "mocap" / "cmu" / "walk"
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +44,9 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     # real motion capture where it exists: walks and the two parts of 75_17
     files = {(it.activity, it.source) for it in items if it.motion["kind"] == "file"}
     assert {("sit", "75_17.bvh"), ("stand", "75_17.bvh")} <= files
-    assert sum(a == "walk" for a, _ in files) == 3
+    # all ten CMU iClone walks shipped in data/mocap (14 motion sources per class, see the preset)
+    assert sorted(f for a, f in files if a == "walk") == sorted(p.name for p in MOCAP_WALKS.glob("*_iclone.bvh"))
+    assert sum(a == "walk" for a, _ in files) == 10
     # frontal falls only: generator seed = 0 (mod 3) is the forward fall
     assert all(it.motion["params"]["seed"] % 3 == 0 for it in items if it.activity == "fall")
     # sit and stand get a chair on the mesh backends (the points backend is free space)
@@ -60,6 +65,19 @@ def test_built_motions_have_the_clip_length_and_walks_go_back_and_forth(items, a
         signs = np.sign(np.diff(x)[np.abs(np.diff(x)) > 0.2])  # moving > 0.4 m/s
         runs = signs[np.r_[True, signs[1:] != signs[:-1]]]
         assert list(runs[:3]) == [1, -1, 1]
+
+
+def test_every_shipped_walk_take_builds_a_back_and_forth_clip(items):
+    """Each CMU walk (one item per take) imports, retargets and fills its 10 s clip without a jump."""
+    seen = set()
+    for it in items:
+        if it.activity != "walk" or it.motion["kind"] != "file" or it.source in seen:
+            continue
+        seen.add(it.source)
+        m = build_motion(it.motion)
+        assert m.duration == pytest.approx(10.0, abs=0.5 / m.fps), it.source
+        assert np.isfinite(m.positions).all() and np.abs(np.diff(m.positions, axis=0)).max() <= MAX_STEP_M, it.source
+    assert len(seen) == 10
 
 
 def test_back_and_forth_returns_along_its_path_and_fit_clip_holds_poses():
