@@ -159,9 +159,12 @@ class FrameBatchCaster:
         faces: body triangles [F, 3]; n_vertices: body vertex count.
         bounds: (lo [3], hi [3]) box (m) containing everything rays may travel through.
         batch: frames per BVH build.
+        embree: cast through Embree directly (`rtchannel.backends.embree`; same library as Mitsuba's, ~3x
+            cheaper BVH updates) when it is available; False: through Mitsuba.
     """
 
-    def __init__(self, static, faces: np.ndarray, n_vertices: int, bounds, batch: int = 16):
+    def __init__(self, static, faces: np.ndarray, n_vertices: int, bounds, batch: int = 16, embree: bool = True):
+        from rtchannel.backends import embree as _embree
         from rtchannel.scene.llvm import import_mitsuba
 
         mi = self._mi = import_mitsuba()
@@ -173,14 +176,19 @@ class FrameBatchCaster:
         self.batch, self.n_vertices = batch, n_vertices
         f = np.asarray(faces, np.int64)
         body_faces = (f[None] + n_vertices * np.arange(batch)[:, None, None]).reshape(-1, 3)
-        shapes = {"type": "scene", "body": self._mesh("body", np.zeros((batch * n_vertices, 3)), body_faces)}
+        cells = None
         if static:
             sv = np.concatenate([v for v, _ in static])
             base = np.cumsum([0] + [len(v) for v, _ in static])[:-1]
             sf = np.concatenate([np.asarray(fc, np.int64) + b for (_, fc), b in zip(static, base)])
-            allv = np.concatenate([sv + o for o in self.offsets])
-            allf = np.concatenate([sf + len(sv) * i for i in range(batch)])
-            shapes["static"] = self._mesh("static", allv, allf)
+            cells = (np.concatenate([sv + o for o in self.offsets]), np.concatenate([sf + len(sv) * i for i in range(batch)]))
+        if embree and _embree.available():  # the same Embree, without Mitsuba's per-update overhead
+            self._embree = _embree.EmbreeScene(cells, body_faces, batch * n_vertices)
+            return
+        self._embree = None
+        shapes = {"type": "scene", "body": self._mesh("body", np.zeros((batch * n_vertices, 3)), body_faces)}
+        if cells is not None:
+            shapes["static"] = self._mesh("static", *cells)
         self.scene = mi.load_dict(shapes)
         self._params = mi.traverse(self.scene)
 
@@ -199,12 +207,18 @@ class FrameBatchCaster:
         v[:len(frames)] = frames
         v[len(frames):] = frames[-1]  # unused cells: any pose
         v += self.offsets[:, None, :]
+        if self._embree is not None:
+            self._embree.set_body(v.reshape(-1, 3))
+            return
         self._params["body.vertex_positions"] = self._mi.Float(np.ascontiguousarray(v, np.float32).ravel())
         self._params.update()
 
     def occluded_cells(self, origins, directions, max_t, cells) -> np.ndarray:
         """Any-hit test of rays [N, 3] (unit directions, up to max_t [N] m) in cells [N] (frame slots)."""
-        return occluded(self, np.asarray(origins, float) + self.offsets[cells], directions, max_t)
+        origins = np.asarray(origins, float) + self.offsets[cells]
+        if self._embree is not None:
+            return self._embree.occluded(origins, directions, max_t)
+        return occluded(self, origins, directions, max_t)
 
 
 _CASTERS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
