@@ -205,7 +205,9 @@ class FrameBatchCaster:
         """Place up to `batch` body poses [B, V, 3] (m) in the cells (one BVH build)."""
         v = np.empty((self.batch, self.n_vertices, 3))
         v[:len(frames)] = frames
-        v[len(frames):] = frames[-1]  # unused cells: any pose
+        # Unused cells of a last, partial batch: Embree skips triangles with non-finite corners, so they cost
+        # no build time; Mitsuba's route gets any pose instead.
+        v[len(frames):] = np.nan if self._embree is not None else frames[-1]
         v += self.offsets[:, None, :]
         if self._embree is not None:
             self._embree.set_body(v.reshape(-1, 3))
