@@ -143,9 +143,9 @@ def antenna_targets(kinds_sizes, cent, walls) -> tuple[np.ndarray, np.ndarray]:
 
 def antenna_gain(spec, position, targets) -> np.ndarray:
     """Amplitude factor sqrt(G) [N] of `spec` at `position` [3] towards `targets` [N, 3] (m); 1 for None."""
-    from processing.antenna import gain
+    from rtchannel.backends.facet_kernels import antenna_amplitudes
 
-    return np.ones(len(targets)) if spec is None else gain(spec, position, targets)
+    return np.ones(len(targets)) if spec is None else antenna_amplitudes(spec, position, targets)
 
 
 def merge_batches(batches: list[list[dict]], n_links: int) -> list[dict]:
