@@ -231,7 +231,9 @@ def caster_for(scene, faces, vertices, sources, batch) -> FrameBatchCaster:
     static = [(v, f) for _, v, f in scene.static_meshes]
     if not static and getattr(scene, "walls", None):
         static = [(w.polygon, np.array([[0, i, i + 1] for i in range(1, len(w.polygon) - 1)])) for w in scene.walls]
-    pts = [vertices.min(axis=(0, 1)), vertices.max(axis=(0, 1)), sources.min(axis=0), sources.max(axis=0)]
+    # per coordinate: a reduction over one strided axis is ~10x faster than over axes (0, 1) of [K, V, 3]
+    pts = [[vertices[..., i].min() for i in range(3)], [vertices[..., i].max() for i in range(3)],
+           sources.min(axis=0), sources.max(axis=0)]
     pts += [v.min(axis=0) for v, _ in static] + [v.max(axis=0) for v, _ in static]
     lo, hi = np.min(pts, axis=0), np.max(pts, axis=0)
     mine = _CASTERS.setdefault(scene, {})  # one per body mesh (the direct and the image LOD)
