@@ -102,7 +102,7 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
     for s_tx, s_rx in pairs:
         needed[s_tx] |= direct[s_rx]
         needed[s_rx] |= direct[s_tx]
-    jobs, starts, ends, stops, cells = [], [], [], [], []
+    jobs, starts, ends, stops, cells, heights = [], [], [], [], [], {}
     for s, pos in enumerate(sources):
         for w, wall in enumerate(walls):
             nw = np.asarray(wall.normal, float)
@@ -110,7 +110,9 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
             if not h_src > 0:
                 continue
             image = mirror(pos, wall)
-            h_c = (centroids - wall.point) @ nw
+            if w not in heights:  # the centroids' heights above the wall, shared by every source
+                heights[w] = (centroids - wall.point) @ nw
+            h_c = heights[w]
             need = usable if w in every_facet else needed[s]
             b, f = np.nonzero(need & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
             c = centroids[b, f]
@@ -257,7 +259,11 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
     from rtchannel.scene.rt_scene import RadarPlacementError
 
     for p in sources:
-        near = np.flatnonzero(np.einsum("kvi,kvi->kv", vertices - p, vertices - p).min(axis=1) < 0.25)
+        # squared distances per coordinate: no [K, V, 3] temporary (the test only picks frames to check)
+        d2 = (vertices[..., 0] - p[0]) ** 2
+        d2 += (vertices[..., 1] - p[1]) ** 2
+        d2 += (vertices[..., 2] - p[2]) ** 2
+        near = np.flatnonzero(d2.min(axis=1) < 0.25)
         for k in near:
             a, b, c = (vertices[k][faces[:, i]] for i in range(3))
             bary = closest_point_on_triangles(np.broadcast_to(p, a.shape), a, b, c)
