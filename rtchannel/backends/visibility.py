@@ -1,4 +1,4 @@
-"""Facet visibility for the `facets` backend: batched Mitsuba shadow rays on the shared scene.
+"""Facet visibility for the `facets` backend: batched Embree shadow rays on the shared scene's geometry.
 
 Every test is an occlusion (any-hit) ray that stops just short of its target, so nothing but real
 occluders (other body triangles, walls, furniture) can block it:
@@ -10,9 +10,11 @@ occluders (other body triangles, walls, furniture) can block it:
 Image legs are only traced for facets the caller still needs (those visible directly from the other
 end of some link), which halves the ray count; through walls with double-bounce paths (both
 antennas mirrored) every facet facing the image is traced, as such a path needs no direct line of
-sight. The rays of every traced frame of a BVH batch (see `FrameBatchCaster`) go to Mitsuba in two
-calls: all direct rays, then all image legs; casting is cheap (~3e7 rays/s), so the Python/numpy work
-around it is kept vectorised over frames and facets.
+sight. The rays of every traced frame of a BVH batch (see `FrameBatchCaster`) go to the ray caster in
+two calls: all direct rays, then all image legs; casting is cheap (~1e7 rays/s per core), so the
+Python/numpy work around it is kept vectorised over frames and facets. The caster is Mitsuba's Embree,
+called directly (`rtchannel.backends.embree`), or Mitsuba itself where that library is not callable; both
+give the same answers (tests/test_facet_speed.py).
 
 The scene is an `rtchannel.scene.rt_scene.RTScene` (or anything with ``mi_scene`` or a ``cast`` method).
 """
@@ -148,7 +150,7 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
 class FrameBatchCaster:
     """Ray casts for many frames of a deforming body with one BVH build per `batch` frames.
 
-    Each Mitsuba BVH update carries a per-call overhead on top of its per-triangle build cost (10-20 ms
+    Each BVH update carries a per-call overhead on top of its per-triangle build cost (Mitsuba's: 10-20 ms
     for a 10k-triangle body), so `batch` copies of the scene (the static geometry and the body at `batch` different frames) are laid out side
     by side on a grid of cells `cell` metres apart and built together; a ray for frame slot b is shifted
     into cell b. Cells are wider than everything (static geometry, body over the whole motion, antennas)
