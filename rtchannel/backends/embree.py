@@ -62,7 +62,7 @@ def _load():
                 f = getattr(lib, sym)
                 f.restype, f.argtypes = res, args
                 api[key] = f
-            api["device"] = api["new_device"](os.environ.get("RTC_CFG","").encode() or None)
+            api["device"] = api["new_device"](None)
             if not api["device"]:
                 api = None
         except (ImportError, OSError, AttributeError):
