@@ -48,7 +48,8 @@ def test_embree_casts_equal_mitsuba_ray_test_ray_by_ray():
     scene = get_scene("room", LOD, m.rig.height, 24.125e9)
     static = [(v, f) for _, v, f in scene.static_meshes]
     bounds = (np.array([-3.0, -3.0, -0.5]), np.array([3.0, 3.0, 3.0]))
-    casters = [visibility.FrameBatchCaster(static, av.faces, verts.shape[1], bounds, 8, embree=e) for e in (True, False)]
+    casters = [visibility.FrameBatchCaster(static, av.faces, verts.shape[1], bounds, 8, embree=e)
+               for e in (True, False)]
     assert casters[0]._embree is not None and casters[1]._embree is None
     rng = np.random.default_rng(1)
     o, d, t, cells = _rays_at_body(verts, av.faces, len(verts), rng)

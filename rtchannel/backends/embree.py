@@ -29,9 +29,10 @@ _API = {
     "release_scene": ("_ZN7mitsuba15rtcReleaseSceneEPNS_10RTCSceneTyE", None, [_P]),
     "new_geometry": ("_ZN7mitsuba14rtcNewGeometryEPNS_11RTCDeviceTyENS_15RTCGeometryTypeE", _P, [_P, _I]),
     "release_geometry": ("_ZN7mitsuba18rtcReleaseGeometryEPNS_13RTCGeometryTyE", None, [_P]),
-    "shared_buffer": ("_ZN7mitsuba26rtcSetSharedGeometryBufferEPNS_13RTCGeometryTyENS_13RTCBufferTypeEjNS_9RTCFormatEPKvmmm",
-                      None, [_P, _I, _U, _I, _P, _S, _S, _S]),
-    "update_buffer": ("_ZN7mitsuba23rtcUpdateGeometryBufferEPNS_13RTCGeometryTyENS_13RTCBufferTypeEj", None, [_P, _I, _U]),
+    "shared_buffer": ("_ZN7mitsuba26rtcSetSharedGeometryBufferEPNS_13RTCGeometryTyENS_13RTCBufferTypeEjNS_9RTCFormat"
+                      "EPKvmmm", None, [_P, _I, _U, _I, _P, _S, _S, _S]),
+    "update_buffer": ("_ZN7mitsuba23rtcUpdateGeometryBufferEPNS_13RTCGeometryTyENS_13RTCBufferTypeEj", None,
+                      [_P, _I, _U]),
     "commit_geometry": ("_ZN7mitsuba17rtcCommitGeometryEPNS_13RTCGeometryTyE", None, [_P]),
     "attach": ("_ZN7mitsuba17rtcAttachGeometryEPNS_10RTCSceneTyEPNS_13RTCGeometryTyE", _U, [_P, _P]),
     "commit_scene": ("_ZN7mitsuba14rtcCommitSceneEPNS_10RTCSceneTyE", None, [_P]),

@@ -42,9 +42,9 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
     """Per link {kind: (slot [N], facet [N], gain [N] complex)} of one batch of traced frames.
 
     vis: `visibility.BatchVisibility` of the batch; slot0: slot of its first frame; cent, norm [B, F, 3],
-    area [B, F]: facet geometry; mesh: (vertices [B, V, 3], faces [F, 3]) of the batch (corners for `po`); phases: diffuse
-    phase factors [F] of this mesh or None; double: (tx wall, rx wall) index pairs of the double-bounce
-    paths to form; antennas: per link (tx pattern, rx pattern) or None for isotropic antennas (see
+    area [B, F]: facet geometry; mesh: (vertices [B, V, 3], faces [F, 3]) of the batch (corners, with `po`);
+    phases: diffuse phase factors [F] of this mesh or None; double: (tx wall, rx wall) index pairs of the
+    double-bounce paths to form; antennas: per link (tx pattern, rx pattern) or None for isotropic antennas (see
     `antenna_targets`; None for every link when not given)."""
     n_w = len(walls)
     antennas = [None] * len(pairs) if antennas is None else antennas

@@ -151,9 +151,9 @@ class FrameBatchCaster:
     """Ray casts for many frames of a deforming body with one BVH build per `batch` frames.
 
     Each BVH update carries a per-call overhead on top of its per-triangle build cost (Mitsuba's: 10-20 ms
-    for a 10k-triangle body), so `batch` copies of the scene (the static geometry and the body at `batch` different frames) are laid out side
-    by side on a grid of cells `cell` metres apart and built together; a ray for frame slot b is shifted
-    into cell b. Cells are wider than everything (static geometry, body over the whole motion, antennas)
+    for a 10k-triangle body), so `batch` copies of the scene (the static geometry and the body at `batch`
+    different frames) are laid out side by side on a grid of cells `cell` metres apart and built together; a
+    ray for frame slot b is shifted into cell b. Cells are wider than everything (static geometry, body over the whole motion, antennas)
     plus a margin, so no ray leaves its cell before its max_t; coordinates stay within a few cells (float32
     resolution ~4e-6 m at 50 m, well under the 1e-4 m ray stops). Batching 16 frames cut the BVH time by
     ~40 % in benchmarks/bench_facets.py.
@@ -185,7 +185,8 @@ class FrameBatchCaster:
             sv = np.concatenate([v for v, _ in static])
             base = np.cumsum([0] + [len(v) for v, _ in static])[:-1]
             sf = np.concatenate([np.asarray(fc, np.int64) + b for (_, fc), b in zip(static, base)])
-            cells = (np.concatenate([sv + o for o in self.offsets]), np.concatenate([sf + len(sv) * i for i in range(batch)]))
+            cells = (np.concatenate([sv + o for o in self.offsets]),
+                     np.concatenate([sf + len(sv) * i for i in range(batch)]))
         if embree and _embree.available():  # the same Embree, without Mitsuba's per-update overhead
             self._embree = _embree.EmbreeScene(cells, body_faces, batch * n_vertices)
             return
