@@ -150,13 +150,13 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
 class FrameBatchCaster:
     """Ray casts for many frames of a deforming body with one BVH build per `batch` frames.
 
-    Each BVH update carries a per-call overhead on top of its per-triangle build cost (Mitsuba's: 10-20 ms
-    for a 10k-triangle body), so `batch` copies of the scene (the static geometry and the body at `batch`
-    different frames) are laid out side by side on a grid of cells `cell` metres apart and built together; a
-    ray for frame slot b is shifted into cell b. Cells are wider than everything (static geometry, body over
-    the whole motion, antennas) plus a margin, so no ray leaves its cell before its max_t; coordinates stay within a few cells (float32
-    resolution ~4e-6 m at 50 m, well under the 1e-4 m ray stops). Batching 16 frames cut the BVH time by
-    ~40 % in benchmarks/bench_facets.py.
+    Each BVH update carries a per-call overhead on top of its per-triangle build cost (Mitsuba's: 10-20 ms for a
+    10k-triangle body), so `batch` copies of the scene (the static geometry and the body at `batch` different
+    frames) are laid out side by side on a grid of cells `cell` metres apart and built together; a ray for frame
+    slot b is shifted into cell b. Cells are wider than everything (static geometry, body over the whole motion,
+    antennas) plus a margin, so no ray leaves its cell before its max_t; coordinates stay within a few cells
+    (float32 resolution ~4e-6 m at 50 m, well under the 1e-4 m ray stops). Batching 16 frames cut the BVH time
+    by ~40 % in benchmarks/bench_facets.py.
 
     Args:
         static: list of (vertices [V, 3], faces [T, 3]) of the static geometry.
