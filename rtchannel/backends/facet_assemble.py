@@ -12,7 +12,7 @@ import numpy as np
 
 from processing.pathset import PathSet
 from processing.waveform import C0
-from rtchannel.backends.surface_scattering import facet_gains, wall_factor
+from rtchannel.backends.surface_scattering import facet_gains_indexed, wall_factor
 from rtchannel.backends.wall_images import mirror
 
 
@@ -36,15 +36,15 @@ def double_kind(w_tx: int, w_rx: int, n_walls: int) -> int:
     return 1 + 2 * n_walls + w_tx if w_tx == w_rx else 1 + 3 * n_walls + n_walls * w_tx + w_rx
 
 
-def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, material, wavelength, po,
+def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, material, wavelength, po,
                phases=None, direct_paths: bool = True, image_paths: bool = True, double=(),
                antennas=None) -> list[dict]:
     """Per link {kind: (slot [N], facet [N], gain [N] complex)} of one batch of traced frames.
 
     vis: `visibility.BatchVisibility` of the batch; slot0: slot of its first frame; cent, norm [B, F, 3],
-    area [B, F]: facet geometry; corners_of(b, f): [N, 3, 3] corners (used with `po`); phases: diffuse
-    phase factors [F] of this mesh or None; double: (tx wall, rx wall) index pairs of the double-bounce
-    paths to form; antennas: per link (tx pattern, rx pattern) or None for isotropic antennas (see
+    area [B, F]: facet geometry; mesh: (vertices [B, V, 3], faces [F, 3]) of the batch (corners, with `po`);
+    phases: diffuse phase factors [F] of this mesh or None; double: (tx wall, rx wall) index pairs of the
+    double-bounce paths to form; antennas: per link (tx pattern, rx pattern) or None for isotropic antennas (see
     `antenna_targets`; None for every link when not given)."""
     n_w = len(walls)
     antennas = [None] * len(pairs) if antennas is None else antennas
@@ -85,10 +85,9 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, 
             p_a = np.concatenate([np.broadcast_to(fam[3], (k, 3)) for fam, k in zip(fams, sizes)])
             p_b = np.concatenate([np.broadcast_to(fam[4], (k, 3)) for fam, k in zip(fams, sizes)])
             twin = np.repeat([fam[6] for fam in fams], sizes)
-            c, n, a = cent[b, f], norm[b, f], area[b, f]
-            corners = corners_of(b, f) if po else None
+            c = cent[b, f]
             ph = None if phases is None else phases[f]  # the facet's own surface phase on every path
-            g = facet_gains(material, wavelength, c, n, a, corners, p_a, p_b, po, ph)
+            g = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b, f, p_a, p_b, po, ph)
             if pattern is not None:  # isotropic links skip this: their gains stay bit-identical
                 at_tx, at_rx = antenna_targets([(fam[0], k) for fam, k in zip(fams, sizes)], c, walls)
                 same = pattern[0] == pattern[1]  # monostatic: the same antenna at the same place
@@ -102,8 +101,8 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, corners_of, 
                 g *= amp_tx * amp_rx
             if twin.any():  # monostatic: add the reverse path (same delay and visibility)
                 t = np.flatnonzero(twin)
-                g_rev = facet_gains(material, wavelength, c[t], n[t], a[t], None if corners is None else corners[t],
-                                    p_b[t], p_a[t], po, None if ph is None else ph[t])
+                g_rev = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b[t], f[t], p_b[t], p_a[t],
+                                            po, None if ph is None else ph[t])
                 if pattern is not None:  # reversed, the transmitter sees the receiver's target and vice versa
                     g_rev *= (amp_tx[t] * amp_rx[t] if same else  # same antenna and place: symmetric
                               antenna_gain(pattern[0], tx, at_rx[t]) * antenna_gain(pattern[1], rx, at_tx[t]))
@@ -143,9 +142,9 @@ def antenna_targets(kinds_sizes, cent, walls) -> tuple[np.ndarray, np.ndarray]:
 
 def antenna_gain(spec, position, targets) -> np.ndarray:
     """Amplitude factor sqrt(G) [N] of `spec` at `position` [3] towards `targets` [N, 3] (m); 1 for None."""
-    from processing.antenna import gain
+    from rtchannel.backends.facet_kernels import antenna_amplitudes
 
-    return np.ones(len(targets)) if spec is None else gain(spec, position, targets)
+    return np.ones(len(targets)) if spec is None else antenna_amplitudes(spec, position, targets)
 
 
 def merge_batches(batches: list[list[dict]], n_links: int) -> list[dict]:

@@ -16,12 +16,26 @@ def lambertian_po_gains(c, n, area, corners, p_a, p_b, eta, thickness, wavelengt
     of permittivity eta (None: perfect conductor), slab thickness (0: half-space), scattering coefficient
     s_coef and cross-polar fraction xpd; see `surface_scattering.facet_gains`."""
     e = len(c)
+    corners = np.zeros((e, 3, 3)) if corners is None else corners
+    # the elements as frame 0 of an indexed mesh: element i is facet i, its corners vertices 3i..3i+2
+    return indexed_gains(np.asarray(c, float)[None], np.asarray(n, float)[None], np.asarray(area, float)[None],
+                         np.asarray(corners, float).reshape(1, 3 * e, 3), np.arange(3 * e).reshape(e, 3),
+                         np.zeros(e, np.int64), np.arange(e), p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po)
+
+
+def indexed_gains(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po):
+    """`lambertian_po_gains` of elements given by index, without gathering them: element i is facet ef[i]
+    of frame eb[i], with centroid cent[eb, ef], normal norm[eb, ef] ([B, F, 3]), area area[eb, ef] ([B, F])
+    and corners verts[eb, faces[ef]] (verts [B, V, 3], faces [F, 3]); p_a, p_b [E, 3]."""
+    e = len(eb)
     diffuse, specular = np.empty(e), np.empty(e if po else 0, complex)
     pec = eta is None
-    arr = [np.ascontiguousarray(x, float) for x in (c, n, area, corners if po else np.zeros((1, 3, 3)), p_a, p_b)]
+    arr = [np.ascontiguousarray(x, float) for x in (cent, norm, area, verts)]
+    idx = [np.ascontiguousarray(x, np.int64) for x in (faces, eb, ef)]
+    ends = [np.ascontiguousarray(x, float) for x in (p_a, p_b)]
     kernel = _facets_parallel if e >= _PARALLEL_MIN else _facets_serial
-    kernel(*arr, complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), float(s_coef), float(xpd),
-           po, diffuse, specular)
+    kernel(*arr, *idx, *ends, complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), float(s_coef),
+           float(xpd), po, diffuse, specular)
     return diffuse, (specular if po else None)
 
 
@@ -106,18 +120,22 @@ def _dd2_cis(t0, t1, t2):
 
 
 @numba.njit(cache=True, inline="always")
-def _facet_one(e, c, n, area, corners, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p):
+def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po,
+               out_d, out_p):
     """Fused Lambertian `diffuse_sqrt_rcs` and (with po) `po_sqrt_rcs` x sqrt(1 - S^2), times the
-    radar-equation amplitude, of element e on p_a -> c -> p_b (same maths as `facet_gains`' numpy path)."""
+    radar-equation amplitude, of element e (facet ef[e] of frame eb[e]) on p_a -> c -> p_b (same maths as
+    `facet_gains`' numpy path)."""
+    b, f = eb[e], ef[e]
+    c, n = cent[b, f], norm[b, f]
     ra2 = 0.0
     rb2 = 0.0
     for i in range(3):
-        ra2 += (c[e, i] - p_a[e, i]) ** 2
-        rb2 += (c[e, i] - p_b[e, i]) ** 2
+        ra2 += (c[i] - p_a[e, i]) ** 2
+        rb2 += (c[i] - p_b[e, i]) ** 2
     ra, rb = np.sqrt(ra2), np.sqrt(rb2)
-    kx, ky, kz = (c[e, 0] - p_a[e, 0]) / ra, (c[e, 1] - p_a[e, 1]) / ra, (c[e, 2] - p_a[e, 2]) / ra
-    ux, uy, uz = (p_b[e, 0] - c[e, 0]) / rb, (p_b[e, 1] - c[e, 1]) / rb, (p_b[e, 2] - c[e, 2]) / rb
-    nx, ny, nz = n[e, 0], n[e, 1], n[e, 2]
+    kx, ky, kz = (c[0] - p_a[e, 0]) / ra, (c[1] - p_a[e, 1]) / ra, (c[2] - p_a[e, 2]) / ra
+    ux, uy, uz = (p_b[e, 0] - c[0]) / rb, (p_b[e, 1] - c[1]) / rb, (p_b[e, 2] - c[2]) / rb
+    nx, ny, nz = n[0], n[1], n[2]
     cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
     cos_s = min(max(nx * ux + ny * uy + nz * uz, 0.0), 1.0)
     c2 = 0.5
@@ -128,7 +146,7 @@ def _facet_one(e, c, n, area, corners, p_a, p_b, eta, pec, thickness, wavelength
         r_te, r_tm = _slab_one(cos_i, eta, thickness, wavelength)
         gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
     scale = wavelength / (FOUR_PI_1_5 * ra * rb)
-    out_d[e] = scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[e], 0.0))
+    out_d[e] = scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[b, f], 0.0))
     if not po:
         return
     hx, hy, hz = ux - kx, uy - ky, uz - kz  # u_tx + u_rx (facet -> antennas)
@@ -142,33 +160,86 @@ def _facet_one(e, c, n, area, corners, p_a, p_b, eta, pec, thickness, wavelength
         rho = -(c2 * r_te - (1 - c2) * r_tm)
     # Triangle integral of exp(j w . (r - centroid)), w = -k (u_tx + u_rx): phases t_i at the corners.
     k = 2 * np.pi / wavelength
-    t = np.empty(3)
-    for j in range(3):
-        t[j] = -k * (hx * (corners[e, j, 0] - (corners[e, 0, 0] + corners[e, 1, 0] + corners[e, 2, 0]) / 3)
-                     + hy * (corners[e, j, 1] - (corners[e, 0, 1] + corners[e, 1, 1] + corners[e, 2, 1]) / 3)
-                     + hz * (corners[e, j, 2] - (corners[e, 0, 2] + corners[e, 1, 2] + corners[e, 2, 2]) / 3))
-    ax, ay, az = (corners[e, 1, 0] - corners[e, 0, 0], corners[e, 1, 1] - corners[e, 0, 1],
-                  corners[e, 1, 2] - corners[e, 0, 2])
-    bx, by, bz = (corners[e, 2, 0] - corners[e, 0, 0], corners[e, 2, 1] - corners[e, 0, 1],
-                  corners[e, 2, 2] - corners[e, 0, 2])
+    v0, v1, v2 = verts[b, faces[f, 0]], verts[b, faces[f, 1]], verts[b, faces[f, 2]]
+    mx, my, mz = (v0[0] + v1[0] + v2[0]) / 3, (v0[1] + v1[1] + v2[1]) / 3, (v0[2] + v1[2] + v2[2]) / 3
+    t0 = -k * (hx * (v0[0] - mx) + hy * (v0[1] - my) + hz * (v0[2] - mz))
+    t1 = -k * (hx * (v1[0] - mx) + hy * (v1[1] - my) + hz * (v1[2] - mz))
+    t2 = -k * (hx * (v2[0] - mx) + hy * (v2[1] - my) + hz * (v2[2] - mz))
+    ax, ay, az = v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]
+    bx, by, bz = v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]
     tri = 0.5 * np.sqrt((ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2 + (ax * by - ay * bx) ** 2)
-    integral = 2 * tri * _dd2_cis(t[0], t[1], t[2])
+    integral = 2 * tri * _dd2_cis(t0, t1, t2)
     out_p[e] = (np.sqrt(1.0 - s_coef * s_coef) * scale * 1j * np.conj(rho) * (np.sqrt(4 * np.pi) / wavelength)
                 * max(0.5 * nh, 0.0) * integral)
 
 
 @numba.njit(parallel=True, cache=True)
-def _facets_parallel(c, n, area, corners, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p):
-    for e in numba.prange(c.shape[0]):
-        _facet_one(e, c, n, area, corners, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p)
+def _facets_parallel(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
+                     po, out_d, out_p):
+    for e in numba.prange(eb.shape[0]):
+        _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
+                   po, out_d, out_p)
 
 
 @numba.njit(cache=True)
-def _facets_serial(c, n, area, corners, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p):
-    for e in range(c.shape[0]):
-        _facet_one(e, c, n, area, corners, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p)
+def _facets_serial(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
+                   po, out_d, out_p):
+    for e in range(eb.shape[0]):
+        _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
+                   po, out_d, out_p)
 
 
 # Below this many elements a parallel launch costs more than it saves (numba's thread start-up and
 # spinning measured ~9 ms per call on a loaded 2-core machine, against ~0.1 us per element).
 _PARALLEL_MIN = 1_000_000
+
+
+def antenna_amplitudes(spec, position, targets) -> np.ndarray:
+    """`processing.antenna.gain` (amplitude sqrt(G) [N] of the antenna `spec` at `position` [3] (m) towards
+    `targets` [N, 3] (m)) in one compiled pass for Gaussian and Yagi patterns, without the numpy
+    temporaries; the same formulas, equal to it within float64 rounding (tests/test_facet_speed.py).
+    Other kinds go to the numpy reference."""
+    from processing import antenna
+
+    targets = np.ascontiguousarray(targets, float)
+    if spec.kind not in ("gaussian", "yagi"):
+        return antenna.gain(spec, position, targets)
+    gauss = spec.kind == "gaussian"
+    if gauss:
+        pa, pe = np.radians(spec.hpbw_az_deg) ** -2, np.radians(spec.hpbw_el_deg) ** -2
+        back = 0.0
+    else:
+        pa, pe = antenna._cos_exponent(spec.hpbw_az_deg), antenna._cos_exponent(spec.hpbw_el_deg)
+        back = 10.0 ** (-spec.front_to_back_db / 10.0)
+    out = np.empty(len(targets))
+    _pattern_serial(targets, np.asarray(position, float), np.ascontiguousarray(spec.frame(position), float), gauss,
+                    float(pa), float(pe), float(back), 10.0 ** (-spec.floor_db / 10.0),
+                    10.0 ** (antenna.peak_gain_dbi(spec) / 10.0), antenna._TINY, out)
+    return out
+
+
+@numba.njit(cache=True)
+def _pattern_serial(targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out):
+    """sqrt(g0 max(pattern, floor)) per target: `processing.antenna._normalised` of the local direction
+    (d @ frame) / |d| (boresight for a target at the antenna); pa, pe are the Gaussian's HPBW^-2 [rad^-2]
+    or the Yagi's cos exponents, back the Yagi's back-lobe level."""
+    for e in range(targets.shape[0]):
+        dx, dy, dz = targets[e, 0] - pos[0], targets[e, 1] - pos[1], targets[e, 2] - pos[2]
+        r = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if r > 0:
+            x = (dx * frame[0, 0] + dy * frame[1, 0] + dz * frame[2, 0]) / r
+            y = (dx * frame[0, 1] + dy * frame[1, 1] + dz * frame[2, 1]) / r
+            z = (dx * frame[0, 2] + dy * frame[1, 2] + dz * frame[2, 2]) / r
+        else:
+            x, y, z = 1.0, 0.0, 0.0
+        s2 = y * y + z * z
+        axis = s2 < tiny
+        den = max(s2, tiny)
+        if gauss:
+            psi = np.arctan2(np.sqrt(s2), x)
+            q = pa if axis else (y * y * pa + z * z * pe) / den
+            g = np.exp(-4.0 * np.log(2.0) * psi * psi * q)
+        else:
+            n = pa if axis else (y * y * pa + z * z * pe) / den
+            g = max(max(x, 0.0) ** n, back * max(-x, 0.0))
+        out[e] = np.sqrt(g0 * max(g, floor))

@@ -56,11 +56,12 @@ facet): diffuse power is area-weighted and the PO term is the same surface integ
 is kept (coherent image power of a 2 s walk within 0.4 dB of the 5k image mesh) while the image path
 count drops ~5x.
 
-Cost drivers (see benchmarks/bench_facets.py): one BVH build per traced frame (batched, ~9 ms CPU per 10k
-triangles), the Python/numpy work around ~10^4 shadow rays per antenna and traced frame (x 2 per wall and
-image facet; the casts themselves are cheap), the compiled gains (~0.3 us per facet path with PO,
-`facet_kernels`), and the [frames, paths] output arrays, which also set the synthesiser's cost; the knobs
-are `trace_fps`, the LOD, `image_lod`, `walls`, `double_bounce` and `min_relative_gain_db`.
+Cost drivers (see benchmarks/bench_facets.py): one BVH build per traced frame (batched, straight through
+Mitsuba's Embree, ~3 ms CPU per 10k triangles), the Python/numpy work around ~10^4 shadow rays per antenna
+and traced frame (x 2 per wall and image facet; the casts themselves are cheap), the compiled gains and
+antenna patterns (~0.2 us per facet path with PO, `facet_kernels`, reading the facets in place), and the
+[frames, paths] output arrays, which also set the synthesiser's cost; the knobs are `trace_fps`, the LOD,
+`image_lod`, `walls`, `double_bounce` and `min_relative_gain_db`.
 """
 from __future__ import annotations
 
@@ -98,8 +99,12 @@ class LinkSpec:
 # at 10 Hz (gains interpolated, delays exact every frame), wall images on the 2k mesh (~5x fewer image
 # paths, power kept), paths whose peak is 50 dB below the link's strongest dropped (bench walk: 0.06 % /
 # 0.02 % of the power, 31 % / 22 % of the paths of radar 1 / 2; the PO glints are ~15 dB above a diffuse
-# facet, so -40 dB would drop 1 % of the power). Double bounce via the floor only: on the 5 s bench walk
-# (two radars, 10k body, room) the chain's CPU time is +15 % with every wall (True) and +34 % with every
+# facet, so -40 dB would drop 1 % of the power). -40 dB keeps 36 % fewer paths than -50 dB (~20 % less
+# synthesis time), but its p(v,t) EMD against the quick converged reference (full LOD, full accuracy, 4 seeds)
+# is 0.0926 against 0.0920 m/s on the 5 s bench walk (0.0983 against 0.0985 on 2 s; -45 dB 0.0932, -35 dB
+# 0.0943 on 5 s): the difference is 2 % of that reference's own error (0.033 m/s), but not an improvement,
+# so -50 dB stays. (Tracing at 7.5 Hz instead of 10: 0.0959 m/s.) Double bounce via the floor only: on the
+# 5 s bench walk (two radars, 10k body, room) the chain's CPU time is +15 % with every wall (True) and +34 % with every
 # pair of walls ("pairs") against ~0 for the floor, while those paths carry 0.3-0.5 % (True) and 0.9-1.8 %
 # ("pairs") of the received power there, the floor alone 0.01-0.02 % (vertical polarisation meets the
 # floor near its Brewster angle; the walls behind the radars give most of it). The floor is kept on: it is
@@ -246,13 +251,12 @@ def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, w
         clock("bvh")
         v = vertices[frames]
         normals, areas, degenerate = face_normals_and_areas(v, faces)
-        corners = v[:, faces]  # [B, F, 3, 3]
-        cent = corners.mean(axis=2)
+        cent = (v[:, faces[:, 0]] + v[:, faces[:, 1]] + v[:, faces[:, 2]]) / 3  # = v[:, faces].mean(axis=2)
         vis = batch_visibility(caster, cent, normals, ~degenerate, sources, walls, pairs,
                                {w for pair in double for w in pair})
         clock("rays")
         batches.append(link_gains(vis, pairs, sources, walls, start, cent, normals, areas,
-                                  lambda b, f: corners[b, f], material, wavelength, po, phases,
+                                  (v, faces), material, wavelength, po, phases,
                                   direct_paths, double=double, antennas=antennas))
         clock("gains")
         if progress is not None:

@@ -320,6 +320,22 @@ def facet_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, corners, p_
     return g + specular if po else g
 
 
+def facet_gains_indexed(mat: SurfaceMaterial, wavelength: float, cent, norm, area, verts, faces, eb, ef, p_a, p_b,
+                        po: bool, phase=None):
+    """`facet_gains` of facets ef [N] of frames eb [N] read in place: centroids cent and normals norm
+    [B, F, 3], areas [B, F] (m^2), corners verts[eb, faces[ef]] (verts [B, V, 3] m, faces [F, 3]). The
+    Lambertian model's compiled kernel reads them by index (no [N, 3, 3] gather); other patterns gather."""
+    if mat.pattern != "lambertian":
+        corners = verts[eb[:, None], faces[ef]] if po else None
+        return facet_gains(mat, wavelength, cent[eb, ef], norm[eb, ef], area[eb, ef], corners, p_a, p_b, po, phase)
+    shape = (len(eb), 3)
+    diffuse, specular = facet_kernels.indexed_gains(
+        cent, norm, area, verts, faces, eb, ef, np.broadcast_to(p_a, shape), np.broadcast_to(p_b, shape), mat.eta,
+        mat.thickness or 0.0, wavelength, mat.scattering_coefficient, mat.xpd_coefficient, po)
+    g = diffuse * phase if phase is not None else diffuse.astype(complex)
+    return g + specular if po else g
+
+
 def lambertian_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, p_a, p_b) -> np.ndarray:
     """Real path gains [E] of surface elements (centroids c [E, 3], normals, areas [E]) on p_a -> c -> p_b
     (points [E, 3]) under the Lambertian diffuse model: the fused, compiled equivalent of

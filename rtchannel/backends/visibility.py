@@ -1,4 +1,4 @@
-"""Facet visibility for the `facets` backend: batched Mitsuba shadow rays on the shared scene.
+"""Facet visibility for the `facets` backend: batched Embree shadow rays on the shared scene's geometry.
 
 Every test is an occlusion (any-hit) ray that stops just short of its target, so nothing but real
 occluders (other body triangles, walls, furniture) can block it:
@@ -10,9 +10,11 @@ occluders (other body triangles, walls, furniture) can block it:
 Image legs are only traced for facets the caller still needs (those visible directly from the other
 end of some link), which halves the ray count; through walls with double-bounce paths (both
 antennas mirrored) every facet facing the image is traced, as such a path needs no direct line of
-sight. The rays of every traced frame of a BVH batch (see `FrameBatchCaster`) go to Mitsuba in two
-calls: all direct rays, then all image legs; casting is cheap (~3e7 rays/s), so the Python/numpy work
-around it is kept vectorised over frames and facets.
+sight. The rays of every traced frame of a BVH batch (see `FrameBatchCaster`) go to the ray caster in
+two calls: all direct rays, then all image legs; casting is cheap (~1e7 rays/s per core), so the
+Python/numpy work around it is kept vectorised over frames and facets. The caster is Mitsuba's Embree,
+called directly (`rtchannel.backends.embree`), or Mitsuba itself where that library is not callable; both
+give the same answers (tests/test_facet_speed.py).
 
 The scene is an `rtchannel.scene.rt_scene.RTScene` (or anything with ``mi_scene`` or a ``cast`` method).
 """
@@ -102,7 +104,7 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
     for s_tx, s_rx in pairs:
         needed[s_tx] |= direct[s_rx]
         needed[s_rx] |= direct[s_tx]
-    jobs, starts, ends, stops, cells = [], [], [], [], []
+    jobs, starts, ends, stops, cells, heights = [], [], [], [], [], {}
     for s, pos in enumerate(sources):
         for w, wall in enumerate(walls):
             nw = np.asarray(wall.normal, float)
@@ -110,7 +112,9 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
             if not h_src > 0:
                 continue
             image = mirror(pos, wall)
-            h_c = (centroids - wall.point) @ nw
+            if w not in heights:  # the centroids' heights above the wall, shared by every source
+                heights[w] = (centroids - wall.point) @ nw
+            h_c = heights[w]
             need = usable if w in every_facet else needed[s]
             b, f = np.nonzero(need & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
             c = centroids[b, f]
@@ -146,22 +150,25 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
 class FrameBatchCaster:
     """Ray casts for many frames of a deforming body with one BVH build per `batch` frames.
 
-    Each Mitsuba BVH update carries a per-call overhead on top of its per-triangle build cost (10-20 ms
-    for a 10k-triangle body), so `batch` copies of the scene (the static geometry and the body at `batch` different frames) are laid out side
-    by side on a grid of cells `cell` metres apart and built together; a ray for frame slot b is shifted
-    into cell b. Cells are wider than everything (static geometry, body over the whole motion, antennas)
-    plus a margin, so no ray leaves its cell before its max_t; coordinates stay within a few cells (float32
-    resolution ~4e-6 m at 50 m, well under the 1e-4 m ray stops). Batching 16 frames cut the BVH time by
-    ~40 % in benchmarks/bench_facets.py.
+    Each BVH update carries a per-call overhead on top of its per-triangle build cost (Mitsuba's: 10-20 ms for a
+    10k-triangle body), so `batch` copies of the scene (the static geometry and the body at `batch` different
+    frames) are laid out side by side on a grid of cells `cell` metres apart and built together; a ray for frame
+    slot b is shifted into cell b. Cells are wider than everything (static geometry, body over the whole motion,
+    antennas) plus a margin, so no ray leaves its cell before its max_t; coordinates stay within a few cells
+    (float32 resolution ~4e-6 m at 50 m, well under the 1e-4 m ray stops). Batching 16 frames cut the BVH time
+    by ~40 % in benchmarks/bench_facets.py.
 
     Args:
         static: list of (vertices [V, 3], faces [T, 3]) of the static geometry.
         faces: body triangles [F, 3]; n_vertices: body vertex count.
         bounds: (lo [3], hi [3]) box (m) containing everything rays may travel through.
         batch: frames per BVH build.
+        embree: cast through Embree directly (`rtchannel.backends.embree`; same library as Mitsuba's, ~3x
+            cheaper BVH updates) when it is available; False: through Mitsuba.
     """
 
-    def __init__(self, static, faces: np.ndarray, n_vertices: int, bounds, batch: int = 16):
+    def __init__(self, static, faces: np.ndarray, n_vertices: int, bounds, batch: int = 16, embree: bool = True):
+        from rtchannel.backends import embree as _embree
         from rtchannel.scene.llvm import import_mitsuba
 
         mi = self._mi = import_mitsuba()
@@ -173,14 +180,20 @@ class FrameBatchCaster:
         self.batch, self.n_vertices = batch, n_vertices
         f = np.asarray(faces, np.int64)
         body_faces = (f[None] + n_vertices * np.arange(batch)[:, None, None]).reshape(-1, 3)
-        shapes = {"type": "scene", "body": self._mesh("body", np.zeros((batch * n_vertices, 3)), body_faces)}
+        cells = None
         if static:
             sv = np.concatenate([v for v, _ in static])
             base = np.cumsum([0] + [len(v) for v, _ in static])[:-1]
             sf = np.concatenate([np.asarray(fc, np.int64) + b for (_, fc), b in zip(static, base)])
-            allv = np.concatenate([sv + o for o in self.offsets])
-            allf = np.concatenate([sf + len(sv) * i for i in range(batch)])
-            shapes["static"] = self._mesh("static", allv, allf)
+            cells = (np.concatenate([sv + o for o in self.offsets]),
+                     np.concatenate([sf + len(sv) * i for i in range(batch)]))
+        if embree and _embree.available():  # the same Embree, without Mitsuba's per-update overhead
+            self._embree = _embree.EmbreeScene(cells, body_faces, batch * n_vertices)
+            return
+        self._embree = None
+        shapes = {"type": "scene", "body": self._mesh("body", np.zeros((batch * n_vertices, 3)), body_faces)}
+        if cells is not None:
+            shapes["static"] = self._mesh("static", *cells)
         self.scene = mi.load_dict(shapes)
         self._params = mi.traverse(self.scene)
 
@@ -197,14 +210,22 @@ class FrameBatchCaster:
         """Place up to `batch` body poses [B, V, 3] (m) in the cells (one BVH build)."""
         v = np.empty((self.batch, self.n_vertices, 3))
         v[:len(frames)] = frames
-        v[len(frames):] = frames[-1]  # unused cells: any pose
+        # Unused cells of a last, partial batch: Embree skips triangles with non-finite corners, so they cost
+        # no build time; Mitsuba's route gets any pose instead.
+        v[len(frames):] = np.nan if self._embree is not None else frames[-1]
         v += self.offsets[:, None, :]
+        if self._embree is not None:
+            self._embree.set_body(v.reshape(-1, 3))
+            return
         self._params["body.vertex_positions"] = self._mi.Float(np.ascontiguousarray(v, np.float32).ravel())
         self._params.update()
 
     def occluded_cells(self, origins, directions, max_t, cells) -> np.ndarray:
         """Any-hit test of rays [N, 3] (unit directions, up to max_t [N] m) in cells [N] (frame slots)."""
-        return occluded(self, np.asarray(origins, float) + self.offsets[cells], directions, max_t)
+        origins = np.asarray(origins, float) + self.offsets[cells]
+        if self._embree is not None:
+            return self._embree.occluded(origins, directions, max_t)
+        return occluded(self, origins, directions, max_t)
 
 
 _CASTERS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -215,7 +236,9 @@ def caster_for(scene, faces, vertices, sources, batch) -> FrameBatchCaster:
     static = [(v, f) for _, v, f in scene.static_meshes]
     if not static and getattr(scene, "walls", None):
         static = [(w.polygon, np.array([[0, i, i + 1] for i in range(1, len(w.polygon) - 1)])) for w in scene.walls]
-    pts = [vertices.min(axis=(0, 1)), vertices.max(axis=(0, 1)), sources.min(axis=0), sources.max(axis=0)]
+    # per coordinate: a reduction over one strided axis is ~10x faster than over axes (0, 1) of [K, V, 3]
+    pts = [[vertices[..., i].min() for i in range(3)], [vertices[..., i].max() for i in range(3)],
+           sources.min(axis=0), sources.max(axis=0)]
     pts += [v.min(axis=0) for v, _ in static] + [v.max(axis=0) for v, _ in static]
     lo, hi = np.min(pts, axis=0), np.max(pts, axis=0)
     mine = _CASTERS.setdefault(scene, {})  # one per body mesh (the direct and the image LOD)
@@ -239,7 +262,11 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
     from rtchannel.scene.rt_scene import RadarPlacementError
 
     for p in sources:
-        near = np.flatnonzero(np.einsum("kvi,kvi->kv", vertices - p, vertices - p).min(axis=1) < 0.25)
+        # squared distances per coordinate: no [K, V, 3] temporary (the test only picks frames to check)
+        d2 = (vertices[..., 0] - p[0]) ** 2
+        d2 += (vertices[..., 1] - p[1]) ** 2
+        d2 += (vertices[..., 2] - p[2]) ** 2
+        near = np.flatnonzero(d2.min(axis=1) < 0.25)
         for k in near:
             a, b, c = (vertices[k][faces[:, i]] for i in range(3))
             bary = closest_point_on_triangles(np.broadcast_to(p, a.shape), a, b, c)
