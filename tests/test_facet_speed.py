@@ -15,7 +15,24 @@ from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import get_scene
 
-pytestmark = pytest.mark.skipif(not embree.available(), reason="Mitsuba's Embree library is not callable")
+
+def test_the_pinned_mitsuba_gives_the_direct_embree_route():
+    """On the pinned Mitsuba (sionna-rt 2.2.0 -> mitsuba 3.9) the direct route must be live: were the library
+    renamed or its self-test to fail, facets would fall back silently (about twice as slow), so CI says so."""
+    import mitsuba
+
+    assert mitsuba.__version__.startswith("3.9") and embree.available()
+
+
+def test_a_failing_self_test_falls_back_to_mitsuba(monkeypatch):
+    monkeypatch.setattr(embree, "_state", {})
+    monkeypatch.setattr(embree, "_self_test", lambda: False)
+    assert not embree.available()
+    with pytest.raises(RuntimeError, match="not available"):
+        embree.EmbreeScene(None, np.array([[0, 1, 2]]), 3)
+    monkeypatch.undo()
+    assert embree.available()
+
 
 LOD = "2k"
 

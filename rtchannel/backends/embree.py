@@ -69,7 +69,26 @@ def _load():
         except (ImportError, OSError, AttributeError):
             api = None
         _state["api"] = api
-        return api
+    # The struct layouts above are Embree 3.13's: a library built otherwise could answer wrongly rather
+    # than fail, so one known scene must give the known answers before any caller relies on it.
+    if api is not None and not _state.get("checked"):
+        _state["checked"] = True
+        if not _self_test():
+            _state["api"] = api = None
+    return api
+
+
+def _self_test() -> bool:
+    """A unit triangle in the z = 0 plane: a ray through it is occluded, one beside it and one that stops
+    short of it are not."""
+    try:
+        scene = EmbreeScene(None, np.array([[0, 1, 2]]), 3)
+        scene.set_body(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
+        org = np.array([[0.2, 0.2, 1.0], [2.0, 2.0, 1.0], [0.2, 0.2, 1.0]])
+        hit = scene.occluded(org, np.array([[0.0, 0.0, -1.0]] * 3), np.array([2.0, 2.0, 0.5]))
+        return hit.tolist() == [True, False, False]
+    except (RuntimeError, OSError, ValueError):
+        return False
 
 
 def available() -> bool:
