@@ -282,3 +282,14 @@ def test_itu_material_outside_its_frequency_range_is_an_error(tmp_path):
     for sionna in (False, True):
         with pytest.raises(ValueError, match="not defined for this frequency"):
             RTScene(p, av.faces, av.vertices, 24.125e9, sionna=sionna)
+
+
+def test_a_scene_loaded_without_sionna_does_not_disturb_sionna_traces():
+    # Sionna RT's solver traces method calls over every live Mitsuba BSDF of the process: the stand-in
+    # materials of a scene loaded without Sionna must not be among them (mitsuba_scene.load).
+    from rtchannel.backends.rcs import PEC, monostatic_rcs, plate_mesh, sionna_backend
+
+    mine, _ = _loaded_both_ways("room")
+    v, f = plate_mesh(0.2, 0.2, 2)
+    r = monostatic_rcs(sionna_backend(PEC, samples_per_src=20_000, specular=True, diffuse=False), v, f, distance=3.0)
+    assert r["n_paths"] == 1 and mine.sionna_scene is None

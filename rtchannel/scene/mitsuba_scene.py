@@ -24,6 +24,7 @@ any of this fails there.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from copy import deepcopy
 
 PLUGIN = "rtchannel-radio-material"
 DEFAULT_THICKNESS = 0.1  # [m], sionna.rt.constants.DEFAULT_THICKNESS
@@ -93,7 +94,31 @@ def rewrite_materials(xml: str) -> str:
             bsdf.insert(0, ET.Element("string", {"name": _KIND, "value": kind}))
         else:
             raise NeedsSionna(f"BSDF type {kind!r}")
+    _inline_top_level_bsdfs(root)
     return ET.tostring(root, encoding="unicode")
+
+
+def _inline_top_level_bsdfs(root) -> None:
+    """Replace each shape's ``<ref>`` to a top-level BSDF by a copy of it and drop the top-level ones: a
+    Mitsuba scene keeps its top-level objects alive, and our stand-in materials must not outlive the load
+    (`load`). Refs from anywhere but a shape raise NeedsSionna."""
+    top = {b.get("id"): b for b in root.findall("bsdf")}
+    for b in top.values():
+        root.remove(b)
+    inlined = set()
+    for shape in root.iter("shape"):
+        for i, child in enumerate(list(shape)):
+            if child.tag == "ref" and child.get("id") in top:
+                copy = deepcopy(top[child.get("id")])
+                copy.attrib.pop("id", None)
+                if child.get("name") is not None:
+                    copy.set("name", child.get("name"))
+                shape.remove(child)
+                shape.insert(i, copy)
+                inlined.add(id(child))
+    for ref in root.iter("ref"):
+        if ref.get("id") in top and id(ref) not in inlined:
+            raise NeedsSionna("a material referenced outside a shape")
 
 
 _REGISTERED: list = []
@@ -117,7 +142,12 @@ def register_plugin(mi):
 
 def load(xml: str, mi):
     """(Mitsuba scene, [(shape id, mesh, material values)]) of a scene XML (after `rewrite_materials`), shapes in
-    Mitsuba's order (Sionna's object order); raises NeedsSionna for a shape without one of our materials."""
+    Mitsuba's order (Sionna's object order); raises NeedsSionna for a shape without one of our materials.
+
+    Each shape then gets a plain ``diffuse`` BSDF in place of ours (ray casts never look at it): Dr.Jit keeps
+    every live BSDF in one registry, and Sionna RT's path solver traces its method calls over all of them,
+    so an instance of `PLUGIN` (which implements none) left alive would break a Sionna RT trace of another
+    scene in the same process (tests/test_rt_scene.py)."""
     cls = register_plugin(mi)
     scene = mi.load_string(xml, optimize=False)  # as sionna.rt.load_scene_from_string
     shapes = []
@@ -126,6 +156,9 @@ def load(xml: str, mi):
         if not isinstance(s, mi.Mesh) or not isinstance(bsdf, cls):
             raise NeedsSionna(f"shape {s.id()!r} is not a mesh with a radio material")
         shapes.append((s.id(), s, bsdf.values))
+    plain = mi.load_dict({"type": "diffuse"})
+    for _, s, _ in shapes:
+        s.set_bsdf(plain)
     return scene, shapes
 
 
