@@ -10,8 +10,11 @@ it, and the materials' parameters are evaluated as Sionna RT 2.2 does:
 - `rewrite_materials` follows `sionna.rt.scene_utils.process_xml`: a BSDF whose id (after a ``mat-`` prefix)
   starts with ``itu_``/``itu-`` is the ITU material of that name (or of its ``type`` string), thickness from
   its ``thickness`` float or `DEFAULT_THICKNESS`; ``radio-material`` and ``itu-radio-material`` BSDFs keep their
-  properties. Anything else (other BSDF types, ``<include>``d files, whose text is not rewritten, shapes
-  without a radio material) raises `NeedsSionna`: the caller then loads the scene through Sionna RT.
+  properties; top-level materials are copied into the shapes that reference them. Anything else (other
+  BSDF types, ``<include>``d files, whose text is not rewritten, shapes without a radio material) raises
+  `NeedsSionna`: the caller then loads the scene through Sionna RT.
+- `load` reads each shape's material and then swaps it for a plain ``diffuse`` BSDF, so no stand-in
+  material outlives the load (Sionna RT's solver traces calls over every live BSDF of the process).
 - `slab_parameters`: ``radio-material`` as `sionna.rt.RadioMaterial` reads its properties (defaults 1, 0 and
   `DEFAULT_THICKNESS`; float32 like Sionna's ``mi.Float``); ITU materials as `sionna.rt.radio_materials.itu.
   itu_material` at the scene frequency (``a f_GHz^b``, ``c f_GHz^d`` in Dr.Jit float32, same operations).
