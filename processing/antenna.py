@@ -43,7 +43,6 @@ from typing import Annotated, Literal, Union
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
-from scipy.integrate import simpson
 
 Vec3 = tuple[float, float, float]
 _TINY = 1e-30  # below this squared sine a direction counts as on the boresight axis (float32-safe)
@@ -211,8 +210,26 @@ def _normalised(spec, x, y, z, xp):
     return xp.maximum(g, floor)
 
 
+# Directivities of the shipped antennas' shapes as `_directivity` computes them on a 2-million-point grid
+# (0.15-0.25 s per shape: a tenth of the whole `rtchannel simulate --backend points` process). Tabulated, the
+# default radar costs nothing at start-up and gets the same value on every machine (numpy's vectorised
+# exp/arctan2 may differ in the last bit between CPUs). tests/test_antenna.py recomputes every entry.
+_TABULATED = {
+    # ANCORTEK_2400T2R4 (the default radar's horns)
+    ("gaussian", (("floor_db", 30.0), ("hpbw_az_deg", 30.0), ("hpbw_el_deg", 30.0), ("kind", "gaussian"))):
+        39.78687945076156,
+}
+
+
+def _directivity_params(spec) -> tuple[str, tuple]:
+    """The key of a pattern's shape: (kind, sorted shape parameters without orientation and peak gain)."""
+    return spec.kind, tuple(sorted(spec.model_dump(exclude={"boresight", "look_at", "up", "peak_gain_dbi"}).items()))
+
+
 @lru_cache(maxsize=64)
 def _directivity(kind: str, params: tuple) -> float:
+    from scipy.integrate import simpson  # only for shapes not in `_TABULATED`
+
     cls = {"gaussian": GaussianBeam, "yagi": YagiBeam}[kind]
     spec = cls.model_validate(dict(params, boresight=(1.0, 0.0, 0.0)))
     psi = np.linspace(0.0, np.pi, 8193)
@@ -227,8 +244,9 @@ def directivity_dbi(spec) -> float:
     """Directivity [dBi] of the pattern's shape: 10 log10(4 pi / integral of G/G0 over the sphere)."""
     if spec.kind == "isotropic":
         return 0.0
-    params = tuple(sorted(spec.model_dump(exclude={"boresight", "look_at", "up", "peak_gain_dbi"}).items()))
-    return 10 * math.log10(_directivity(spec.kind, params))
+    key = _directivity_params(spec)
+    d = _TABULATED.get(key)
+    return 10 * math.log10(_directivity(*key) if d is None else d)
 
 
 def peak_gain_dbi(spec) -> float:

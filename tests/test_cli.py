@@ -1,5 +1,6 @@
 import subprocess
 import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -171,3 +172,31 @@ def test_recording_shorter_than_one_window_writes_nothing(tmp_path, capsys):
             str(tmp_path / "o"), "--quiet", "--no-plots"]
     assert main(args) == 2
     assert "no complete DSP window" in _one_error_line(capsys) and not (tmp_path / "o" / "signature.h5").exists()
+
+
+def test_console_script_ends_simulate_at_once(monkeypatch, tmp_path):
+    # `run` (the console script) skips interpreter finalisation after `simulate` only (os._exit, after
+    # flushing); other commands and library calls of `main` end normally.
+    import rtchannel.cli as cli
+
+    ended = []
+    monkeypatch.setattr(cli.os, "_exit", ended.append)
+    assert cli.run(["simulate", "--out", str(tmp_path), "--activity", "nope", "--quiet"]) == 2
+    assert ended == [2]
+    ended.clear()
+    assert cli.run(["simulate", "--help"]) == 0 and ended == [0]
+    ended.clear()
+    assert cli.run(["bench", "--help"]) == 0 and ended == []
+
+
+def test_console_script_flushes_before_ending(tmp_path):
+    # Every line the command printed reaches a pipe, and the outputs are complete, despite os._exit.
+    out = tmp_path / "walk"
+    r = subprocess.run([sys.executable, "-m", "rtchannel.cli", "simulate", "--duration", "1.0", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    wrote = [line.split(" ", 1)[1] for line in r.stdout.splitlines() if line.startswith("wrote ")]
+    assert [Path(w).name for w in wrote] == ["signature.h5", "pvt.png", "mean_velocity.png", "range.png",
+                                             "range_doppler.png"]
+    with h5py.File(out / "signature.h5") as f:
+        assert f["radar2"]["p_vt"].shape[1] == f["radar2"]["time"].shape[0] > 0

@@ -190,3 +190,106 @@ def test_mitsuba_load_error_is_one_line_without_quoted_content(tmp_path):
     assert "\n" not in msg and "could not load the scene" in msg and "no_such_plugin" not in msg
     assert load_error_line("x.xml", RuntimeError('Error at line 3, col 7: bad "secret text"')) == \
         "x.xml: the ray tracer could not load the scene (line 3, column 7): RuntimeError: Error at line 3, col 7: bad ..."
+
+
+# ------------------------------------------------------------------ loading without Sionna RT (facets)
+def _user_scene(tmp_path, frequency_range_ok=True):
+    """A scene in Sionna's other conventions: an ITU material named by its id (a Blender-style `diffuse`
+    BSDF), a radio-material with explicit parameters, default thicknesses, several shape types."""
+    ground = "concrete" if frequency_range_ok else "very_dry_ground"  # the latter: 1-10 GHz only
+    p = tmp_path / "user.xml"
+    p.write_text(f'''<scene version="2.1.0">
+        <bsdf type="diffuse" id="mat-itu_{ground}"/>
+        <bsdf type="radio-material" id="glassy"><float name="relative_permittivity" value="6.5"/>
+            <float name="conductivity" value="0.03"/><float name="thickness" value="0.012"/></bsdf>
+        <bsdf type="itu-radio-material" id="board"><string name="type" value="plasterboard"/></bsdf>
+        <shape type="rectangle" id="ground"><transform name="to_world"><scale x="5" y="5"/></transform>
+            <ref id="mat-itu_{ground}" name="bsdf"/></shape>
+        <shape type="rectangle" id="pane"><transform name="to_world"><scale x="2" y="1"/>
+            <rotate x="1" angle="90"/><translate y="3" z="1"/></transform><ref id="glassy" name="bsdf"/></shape>
+        <shape type="cube" id="cupboard"><transform name="to_world"><scale value="0.4"/>
+            <translate x="-2" y="2" z="0.4"/></transform><ref id="board" name="bsdf"/></shape>
+    </scene>''')
+    return p
+
+
+def _loaded_both_ways(scene):
+    from rtchannel.body.avatar import load_avatar
+
+    av = load_avatar("2k")
+    return [RTScene(scene, av.faces, av.vertices, 24.125e9, sionna=s) for s in (False, True)]
+
+
+@pytest.mark.parametrize("which", ["room", "furnished", "user"])
+def test_scene_loaded_without_sionna_is_sionnas_bit_for_bit(which, tmp_path):
+    # The facets backend loads scenes with Mitsuba alone (rtchannel.scene.mitsuba_scene, no `import sionna.rt`,
+    # 0.4-0.6 s less start-up). Everything it uses must equal what Sionna RT's loader gives, exactly: object
+    # names and order, static meshes, walls with their slab parameters, and what rays hit.
+    from rtchannel.scene.furniture import Furniture
+    from rtchannel.scene.spec import Scene
+
+    scene = {"room": "room", "furnished": Scene.room().with_furniture(Furniture()),
+             "user": _user_scene(tmp_path)}[which]
+    mine, sionnas = _loaded_both_ways(scene)
+    assert mine.sionna_scene is None and sionnas.sionna_scene is not None
+    assert list(mine.object_names.values()) == list(sionnas.object_names.values())
+    assert mine.object_names[mine.body_object_id] == sionnas.object_names[sionnas.body_object_id] == "body"
+    for (n1, v1, f1), (n2, v2, f2) in zip(mine.static_meshes, sionnas.static_meshes, strict=True):
+        assert n1 == n2 and np.array_equal(v1, v2) and np.array_equal(f1, f2)
+    assert len(mine.walls) == len(sionnas.walls) > 0
+    for a, b in zip(mine.walls, sionnas.walls):
+        for k in ("name", "point", "normal", "polygon", "relative_permittivity", "thickness", "area"):
+            assert np.array_equal(getattr(a, k), getattr(b, k)), (a.name, k)
+    rng = np.random.default_rng(1)
+    origins = rng.uniform(-3, 3, (4000, 3)) * [1, 1, 0] + [0, 0, 1.0]
+    directions = rng.normal(size=(4000, 3))
+    hits = [sc.cast(origins, directions) for sc in (mine, sionnas)]
+    assert hits[0]["hit"].mean() > 0.4 and hits[0]["body"].any()  # the downward half hits the floor
+    for k in hits[0]:
+        assert np.array_equal(hits[0][k], hits[1][k]), k
+
+
+def test_scenes_only_sionna_can_load_fall_back_to_it(tmp_path):
+    from rtchannel.scene import mitsuba_scene
+
+    (tmp_path / "inner.xml").write_text(SCENES["room"].read_text())
+    p = tmp_path / "outer.xml"
+    p.write_text('<scene version="2.1.0"><include filename="inner.xml"/></scene>')
+    mine, sionnas = _loaded_both_ways(p)
+    assert mine.sionna_scene is not None  # included files keep Sionna's plugin names: its loader
+    assert [w.name for w in mine.walls] == [w.name for w in sionnas.walls] == [n for n, _, _ in sionnas.static_meshes]
+    with pytest.raises(mitsuba_scene.NeedsSionna):
+        mitsuba_scene.rewrite_materials('<scene><bsdf type="absorber-radio-material" id="a"/></scene>')
+
+
+def test_itu_materials_are_sionnas():
+    # The table and default thickness used without Sionna must be Sionna's own (a Sionna update that changes
+    # them fails here), and a material outside its frequency range is an error either way.
+    from sionna.rt.constants import DEFAULT_THICKNESS
+    from sionna.rt.radio_materials.itu import ITU_MATERIALS_PROPERTIES
+
+    from rtchannel.scene import mitsuba_scene
+
+    assert mitsuba_scene.ITU_MATERIALS_PROPERTIES == ITU_MATERIALS_PROPERTIES
+    assert mitsuba_scene.DEFAULT_THICKNESS == DEFAULT_THICKNESS
+
+
+def test_itu_material_outside_its_frequency_range_is_an_error(tmp_path):
+    from rtchannel.body.avatar import load_avatar
+
+    av = load_avatar("2k")
+    p = _user_scene(tmp_path, frequency_range_ok=False)
+    for sionna in (False, True):
+        with pytest.raises(ValueError, match="not defined for this frequency"):
+            RTScene(p, av.faces, av.vertices, 24.125e9, sionna=sionna)
+
+
+def test_a_scene_loaded_without_sionna_does_not_disturb_sionna_traces():
+    # Sionna RT's solver traces method calls over every live Mitsuba BSDF of the process: the stand-in
+    # materials of a scene loaded without Sionna must not be among them (mitsuba_scene.load).
+    from rtchannel.backends.rcs import PEC, monostatic_rcs, plate_mesh, sionna_backend
+
+    mine, _ = _loaded_both_ways("room")
+    v, f = plate_mesh(0.2, 0.2, 2)
+    r = monostatic_rcs(sionna_backend(PEC, samples_per_src=20_000, specular=True, diffuse=False), v, f, distance=3.0)
+    assert r["n_paths"] == 1 and mine.sionna_scene is None

@@ -1,8 +1,8 @@
 """Start-up cost of the command line: which heavy libraries a command loads (the speed itself is measured in
 benchmarks/bench_startup.py, not here).
 
-`rtchannel --help` and the argument parser of every command load none of the heavy libraries; the points
-backend's whole chain (procedural motion, paths, synthesis, DSP, signature.h5) runs without the ray tracer
+`rtchannel --help` and the argument parser of every command load none of the heavy libraries; the facets
+backend loads Mitsuba but not Sionna RT (nor its preview libraries) nor torch; the points backend's whole chain (procedural motion, paths, synthesis, DSP, signature.h5) runs without the ray tracer
 (Mitsuba, Dr.Jit, Sionna RT), the mesh library (trimesh), numba or torch, and with the default
 (rectangular) tapers and moving-average MTI without scipy.signal; its figures use matplotlib without pyplot.
 Each check runs in a fresh interpreter: this test process has long since imported everything.
@@ -72,9 +72,11 @@ def test_points_figures_use_matplotlib_without_pyplot(tmp_path):
         assert (out / png).stat().st_size > 10_000
 
 
-def test_facets_simulate_builds_the_scene_once(tmp_path):
+def test_facets_simulate_builds_the_scene_once_without_sionna(tmp_path):
     # One RTScene (one Mitsuba scene load) per process, whatever the CLI does around the backend (chair
-    # fitting, clearance checks): counted by wrapping the constructor before anything runs.
+    # fitting, clearance checks): counted by wrapping the constructor before anything runs. The scene is
+    # loaded with Mitsuba alone: Sionna RT's package (and the matplotlib.pyplot, IPython, ipywidgets and
+    # pythreejs it imports for its previews) is never loaded, nor torch.
     code = (f"from rtchannel.scene import rt_scene\n"
             f"n = [0]\n"
             f"init = rt_scene.RTScene.__init__\n"
@@ -86,7 +88,9 @@ def test_facets_simulate_builds_the_scene_once(tmp_path):
             f"assert main(['simulate', '--backend', 'facets', '--lod', '2k', '--activity', 'walk', '--duration', "
             f"'1.0', '--out', {str(tmp_path / 'f')!r}, '--quiet', '--no-plots']) == 0\n"
             f"assert n[0] == 1, n\n")
-    assert "torch" not in _loaded(code, {"torch"}, timeout=900.0)
+    loaded = _loaded(code, {"torch", "sionna", "matplotlib.pyplot", "IPython", "ipywidgets", "pythreejs", "mitsuba"},
+                     timeout=900.0)
+    assert "mitsuba" in loaded and {m.split(".")[0] for m in loaded} == {"mitsuba"}
 
 
 @pytest.mark.parametrize("name", ["boxcar", "box", "ones", "rect", "rectangular"])

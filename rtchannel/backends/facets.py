@@ -326,7 +326,8 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     from rtchannel.body.skinning import blend_points, matrix_derivatives, rest_for_motion
 
     wf = radar.waveform
-    rt = scene if isinstance(scene, RTScene) else get_scene(scene, lod, motion.rig.height, wf.carrier_hz, skin)
+    rt = scene if isinstance(scene, RTScene) else get_scene(scene, lod, motion.rig.height, wf.carrier_hz, skin,
+                                                            sionna=False)
     avatar = load_avatar(lod)
     if len(rt.body_faces) != avatar.n_faces:
         raise ValueError(f"scene body has {len(rt.body_faces)} triangles but LOD {lod!r} has {avatar.n_faces}")
@@ -365,7 +366,7 @@ def rcs_backend(skin=None, po: bool = True, seed: int | None = 0):
 
     def run(vertices, faces, radar):
         wf = radar.waveform
-        scene = RTScene("free_space", faces, vertices, wf.carrier_hz, skin)
+        scene = RTScene("free_space", faces, vertices, wf.carrier_hz, skin, sionna=False)
         links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
         v = np.stack([vertices, vertices])
         return mesh_paths(scene, np.array([0.0, 0.1]), v, faces, None, links, wf.wavelength,

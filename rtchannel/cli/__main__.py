@@ -1,6 +1,6 @@
 """`python -m rtchannel.cli` = the `rtchannel` command."""
 import sys
 
-from rtchannel.cli import main
+from rtchannel.cli import run
 
-sys.exit(main())
+sys.exit(run())

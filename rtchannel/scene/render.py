@@ -59,7 +59,7 @@ def _static_geometry(scene, height: float, frequency_hz: float, camera_origin) -
     the camera looks through from outside the room."""
     from rtchannel.scene.rt_scene import get_scene
 
-    rt = get_scene(scene, "2k", height, frequency_hz)
+    rt = get_scene(scene, "2k", height, frequency_hz, sionna=False)  # geometry only: no Sionna RT import
     hidden = {w.name for w in rt.walls
               if "#" not in w.name and float((np.asarray(camera_origin) - w.point) @ w.normal) < 0}
     shapes = []

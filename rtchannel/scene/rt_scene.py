@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import re
 import tempfile
+import xml.etree.ElementTree as ET
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,9 +32,9 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
-from rtchannel.errors import RadarPlacementError
+from rtchannel.errors import RadarPlacementError, SceneFileError
 from rtchannel.scene.assets import scenes_dir
-from rtchannel.scene.sandbox import load_scene_string, read_scene_xml
+from rtchannel.scene.sandbox import load_error_line, load_scene_string, read_scene_xml
 from rtchannel.body.meshgeom import closest_point_on_triangles
 
 SCENES: dict[str, Path] = {"room": scenes_dir() / "room.xml", "free_space": scenes_dir() / "free_space.xml"}
@@ -174,9 +175,13 @@ class RTScene:
         body_vertices: initial vertex positions [V, 3] (m).
         frequency_hz: carrier frequency [Hz]; ITU materials are evaluated at it.
         skin: radio material of the body; default dry skin (Gabriel 1996) at `frequency_hz`.
+        sionna: load through Sionna RT (`sionna_scene`, for its path solver); False loads with Mitsuba alone
+            when the scene allows it (`rtchannel.scene.mitsuba_scene`: 0.4-0.6 s less start-up, same geometry,
+            ids and walls; `sionna_scene` is then None), as the facets backend does.
 
     Attributes:
-        sionna_scene: the ``sionna.rt.Scene`` (the body is ``sionna_scene.objects["body"]``).
+        sionna_scene: the ``sionna.rt.Scene`` (the body is ``sionna_scene.objects["body"]``), or None when
+            loaded with Mitsuba alone.
         mi_scene: the underlying ``mitsuba.Scene``.
         walls: planar static faces of at least `MIN_WALL_AREA_M2`.
         body_object_id: the body's Sionna object id (``Paths.objects`` value of body interactions).
@@ -184,11 +189,9 @@ class RTScene:
     """
 
     def __init__(self, scene: str | Path, body_faces: np.ndarray, body_vertices: np.ndarray,
-                 frequency_hz: float, skin: SkinMaterial | None = None):
+                 frequency_hz: float, skin: SkinMaterial | None = None, sionna: bool = True):
         mi = _mi()
         import drjit as dr
-        import sionna.rt as rt
-        from sionna.rt.radio_materials import scattering_pattern_registry
 
         self.path = resolve_scene(scene)
         self.frequency_hz = float(frequency_hz)
@@ -203,6 +206,7 @@ class RTScene:
         end = xml.rfind("</scene>")
         if end < 0:
             raise ValueError(f"{self.path}: not a Mitsuba scene file (no </scene>)")
+        self.sionna_scene = None
         with tempfile.TemporaryDirectory() as tmp:
             ply = Path(tmp) / "body.ply"
             self._body_mesh(mi, verts).write_ply(str(ply))
@@ -214,11 +218,29 @@ class RTScene:
             old = mi.file_resolver()
             try:
                 mi.set_file_resolver(resolver)
-                # merge_shapes=False keeps one object per shape, so errors can name the nearest object.
-                self.sionna_scene = load_scene_string(rt.load_scene_from_string, xml[:end] + body_xml + xml[end:],
-                                                      self.path, merge_shapes=False)
+                shapes = None if sionna else self._load_mitsuba(mi, dr, xml[:end] + body_xml + xml[end:])
+                if shapes is None:
+                    shapes = self._load_sionna(mi, dr, xml[:end] + body_xml + xml[end:])
             finally:
                 mi.set_file_resolver(old)
+        body = next(mesh for name, mesh, _, _ in shapes if name == BODY_ID)
+        self._body_key = f"{body.id()}.vertex_positions"
+        self.body_object_id = next(oid for name, _, _, oid in shapes if name == BODY_ID)
+        self.object_names = {oid: name for name, _, _, oid in shapes}
+        self._dr = dr
+        self._static = self._static_meshes(mi, dr, [(n, m, slab) for n, m, slab, _ in shapes if n != BODY_ID])
+        self.walls = self._find_walls()
+        self.body_vertices = verts.copy()
+        self._check_body_vertex_order(mi, dr, body, verts)
+
+    def _load_sionna(self, mi, dr, xml: str) -> list[tuple]:
+        """Load through Sionna RT (`sionna_scene` set; needed by the sionna backend); [(name, mesh, (eps_r',
+        sigma, thickness), object id)] per shape."""
+        import sionna.rt as rt
+        from sionna.rt.radio_materials import scattering_pattern_registry
+
+        # merge_shapes=False keeps one object per shape, so errors can name the nearest object.
+        self.sionna_scene = load_scene_string(rt.load_scene_from_string, xml, self.path, merge_shapes=False)
         self.sionna_scene.frequency = self.frequency_hz
         body = self.sionna_scene.objects[BODY_ID]
         pattern_args = {"lambertian": {}, "directive": {"alpha_r": self.skin.alpha_r},
@@ -227,14 +249,30 @@ class RTScene:
         body.radio_material.scattering_pattern = scattering_pattern_registry.get(self.skin.scattering_pattern)(**pattern_args)
         self.mi_scene = self.sionna_scene.mi_scene
         self._params = self.sionna_scene.mi_scene_params
-        self._body_key = f"{body.mi_mesh.id()}.vertex_positions"
-        self.body_object_id = int(body.object_id)
-        self.object_names = {int(o.object_id): name for name, o in self.sionna_scene.objects.items()}
-        self._dr = dr
-        self._static = self._static_meshes(mi, dr)
-        self.walls = self._find_walls()
-        self.body_vertices = verts.copy()
-        self._check_body_vertex_order(mi, dr, body.mi_mesh, verts)
+        out = []
+        for name, o in self.sionna_scene.objects.items():
+            m = o.radio_material
+            slab = (float(m.relative_permittivity[0]), float(m.conductivity[0]), float(m.thickness[0]))
+            out.append((name, o.mi_mesh, slab, int(o.object_id)))
+        return out
+
+    def _load_mitsuba(self, mi, dr, xml: str) -> list[tuple] | None:
+        """Load with Mitsuba alone (`rtchannel.scene.mitsuba_scene`: no `import sionna.rt`); same list as
+        `_load_sionna`, or None when the scene needs Sionna RT's loader."""
+        from rtchannel.scene import mitsuba_scene as ms
+
+        try:
+            text = ms.rewrite_materials(xml)
+            scene, shapes = load_scene_string(ms.load, text, self.path, mi=mi)
+        except (ms.NeedsSionna, ET.ParseError):
+            return None
+        try:
+            slabs = [ms.slab_parameters(mi, dr, values, self.frequency_hz) for _, _, values in shapes]
+        except ValueError as e:
+            raise SceneFileError(load_error_line(self.path, e)) from None
+        self.mi_scene = scene
+        self._params = mi.traverse(scene)
+        return [(name, mesh, slab, ms.object_id(mi, dr, mesh)) for (name, mesh, _), slab in zip(shapes, slabs)]
 
     # ------------------------------------------------------------------ construction helpers
     def _body_mesh(self, mi, verts):
@@ -256,15 +294,14 @@ class RTScene:
         """(name, vertices [V, 3] m, faces [T, 3]) of every static shape."""
         return [(n, v, f) for n, v, f, _ in self._static]
 
-    def _static_meshes(self, mi, dr) -> list[tuple[str, np.ndarray, np.ndarray, object]]:
+    @staticmethod
+    def _static_meshes(mi, dr, shapes) -> list[tuple[str, np.ndarray, np.ndarray, tuple]]:
+        """(name, vertices, faces, (eps_r', sigma, thickness)) of every (name, mesh, slab) in `shapes`."""
         out = []
-        for name, obj in self.sionna_scene.objects.items():
-            if name == BODY_ID:
-                continue
-            m = obj.mi_mesh
+        for name, m, slab in shapes:
             v = np.stack([_to_np(c) for c in m.vertex_position(dr.arange(mi.UInt32, m.vertex_count()))], axis=1)
             f = np.stack([_to_np(c) for c in m.face_indices(dr.arange(mi.UInt32, m.face_count()))], axis=1)
-            out.append((name, v.astype(np.float64), f.astype(np.int64), obj.radio_material))
+            out.append((name, v.astype(np.float64), f.astype(np.int64), slab))
         return out
 
     def _find_walls(self) -> list[Wall]:
@@ -330,9 +367,10 @@ class RTScene:
         if side.max() <= _PLANE_TOL_M and side.min() < -_PLANE_TOL_M:
             n = -n
         omega = 2 * np.pi * self.frequency_hz
-        eps = complex(float(mat.relative_permittivity[0]), -float(mat.conductivity[0]) / (omega * epsilon_0))
+        eps_r, sigma, thickness = mat
+        eps = complex(eps_r, -sigma / (omega * epsilon_0))
         return Wall(name=name, point=centroid, normal=n, polygon=polygon, relative_permittivity=eps,
-                    thickness=float(mat.thickness[0]), area=float(hull.volume))
+                    thickness=thickness, area=float(hull.volume))
 
     # ------------------------------------------------------------------ per-frame API
     def set_body(self, vertices: np.ndarray) -> None:
@@ -430,21 +468,24 @@ _CACHE_SIZE = 4
 
 
 def get_scene(scene: str | Path, lod: str, height: float, frequency_hz: float,
-              skin: SkinMaterial | None = None) -> RTScene:
+              skin: SkinMaterial | None = None, sionna: bool = True) -> RTScene:
     """Cached `RTScene` with the avatar (`lod`, scaled to `height` m) as body, so batch workers keep the
     scene and Dr.Jit's compiled kernels warm. The body is returned in the rest pose (a cached scene is
-    reset, ~10 ms, since a previous user left it in its last pose); call `set_body`."""
+    reset, ~10 ms, since a previous user left it in its last pose); call `set_body`. `sionna=False` (the
+    facets backend) may get a scene loaded without Sionna RT (`RTScene`), or a cached one loaded with it."""
     from rtchannel.body.avatar import load_avatar
 
     key = (str(resolve_scene(scene)), lod, round(float(height), 6), float(frequency_hz), skin)
-    if key in _CACHE:
-        _CACHE.move_to_end(key)
-        sc, rest = _CACHE[key]
-        if not np.array_equal(sc.body_vertices, rest):
-            sc.set_body(rest)
-        return sc
+    for k in [key + (True,)] + ([] if sionna else [key + (False,)]):
+        if k in _CACHE:
+            _CACHE.move_to_end(k)
+            sc, rest = _CACHE[k]
+            if not np.array_equal(sc.body_vertices, rest):
+                sc.set_body(rest)
+            return sc
+    key += (sionna,)
     av = load_avatar(lod, height)
-    sc = RTScene(scene, av.faces, av.vertices, frequency_hz, skin)
+    sc = RTScene(scene, av.faces, av.vertices, frequency_hz, skin, sionna=sionna)
     _CACHE[key] = (sc, sc.body_vertices.copy())
     while len(_CACHE) > _CACHE_SIZE:
         _CACHE.popitem(last=False)
