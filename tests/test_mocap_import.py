@@ -22,7 +22,7 @@ SIT_STAND = MOCAP / "sit" / "75_17.bvh"
 
 # the takes ship with the repository (data/mocap): missing data must fail, not skip
 def test_mocap_present():
-    assert len(WALKS) == 3 and C3D_WALK.is_file() and C3D_STAND.is_file() and SIT_STAND.is_file(), \
+    assert len(WALKS) == 10 and C3D_WALK.is_file() and C3D_STAND.is_file() and SIT_STAND.is_file(), \
         f"CMU takes missing under {MOCAP}"
 
 
