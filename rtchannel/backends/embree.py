@@ -44,7 +44,7 @@ _FORMAT_UINT3, _FORMAT_FLOAT3 = 0x5003, 0x9003
 _RAY_FLOATS = 12  # struct RTCRay: org[3], tnear, dir[3], time, tfar, mask, id, flags (48 bytes)
 _CHUNK = 1 << 16  # rays per rtcOccluded1M call (threads take chunks in turn)
 
-_lock = threading.Lock()
+_lock = threading.RLock()
 _state: dict = {}
 
 
@@ -69,13 +69,12 @@ def _load():
         except (ImportError, OSError, AttributeError):
             api = None
         _state["api"] = api
-    # The struct layouts above are Embree 3.13's: a library built otherwise could answer wrongly rather
-    # than fail, so one known scene must give the known answers before any caller relies on it.
-    if api is not None and not _state.get("checked"):
-        _state["checked"] = True
-        if not _self_test():
+        # The struct layouts above are Embree 3.13's: a library built otherwise could answer wrongly rather
+        # than fail, so one known scene must give the known answers before any caller relies on it (the
+        # lock is re-entrant: the test's own scene reads the api published just above, other threads wait).
+        if api is not None and not _self_test():
             _state["api"] = api = None
-    return api
+        return api
 
 
 def _self_test() -> bool:
