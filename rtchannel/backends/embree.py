@@ -7,7 +7,7 @@ through a Dr.Jit kernel. Here the same Embree library (the ``libembree3.so`` bes
 its C API is compiled into the ``mitsuba`` C++ namespace, hence the mangled names) builds the same
 triangles from float32 buffers shared with numpy and answers any-hit queries for a numpy array of rays
 (``rtcOccluded1M``). Same library, same float32 triangles and rays: the answers are Embree's either way
-(tests/test_embree_caster.py compares the two routes ray by ray).
+(tests/test_facet_speed.py compares the two routes ray by ray).
 
 `available()` is False when the library or a symbol is missing (another Mitsuba build); `visibility`
 then falls back to Mitsuba.
@@ -35,12 +35,19 @@ _API = {
                       [_P, _I, _U]),
     "commit_geometry": ("_ZN7mitsuba17rtcCommitGeometryEPNS_13RTCGeometryTyE", None, [_P]),
     "attach": ("_ZN7mitsuba17rtcAttachGeometryEPNS_10RTCSceneTyEPNS_13RTCGeometryTyE", _U, [_P, _P]),
+    "scene_quality": ("_ZN7mitsuba23rtcSetSceneBuildQualityEPNS_10RTCSceneTyENS_15RTCBuildQualityE", None, [_P, _I]),
+    "geometry_quality": ("_ZN7mitsuba26rtcSetGeometryBuildQualityEPNS_13RTCGeometryTyENS_15RTCBuildQualityE", None,
+                         [_P, _I]),
     "commit_scene": ("_ZN7mitsuba14rtcCommitSceneEPNS_10RTCSceneTyE", None, [_P]),
     "occluded_1m": ("_ZN7mitsuba13rtcOccluded1MEPNS_10RTCSceneTyEPNS_19RTCIntersectContextEPNS_6RTCRayEjm", None,
                     [_P, _P, _P, _U, _S]),
 }
 _GEOMETRY_TRIANGLE, _BUFFER_INDEX, _BUFFER_VERTEX = 0, 0, 1
 _FORMAT_UINT3, _FORMAT_FLOAT3 = 0x5003, 0x9003
+# RTC_BUILD_QUALITY_LOW (Morton builder): each BVH is used for one batch of rays only, and on the bench walk
+# the low-quality build costs 0.03 s against 0.12 s (medium) while the rays take 0.27 against 0.24 s
+# (benchmarks/bench_facets.py --quick, idle). Which triangles a ray hits does not depend on the BVH.
+_BUILD_QUALITY_LOW = 0
 _RAY_FLOATS = 12  # struct RTCRay: org[3], tnear, dir[3], time, tfar, mask, id, flags (48 bytes)
 _CHUNK = 1 << 16  # rays per rtcOccluded1M call (threads take chunks in turn)
 
@@ -109,6 +116,7 @@ class EmbreeScene:
             raise RuntimeError("Mitsuba's Embree library is not available")
         self._api = api
         self._scene = api["new_scene"](api["device"])
+        api["scene_quality"](self._scene, _BUILD_QUALITY_LOW)
         self._geoms, self._keep = [], []
         if static is not None and len(static[1]):
             self._add(np.asarray(static[0], np.float32), static[1])
@@ -122,6 +130,7 @@ class EmbreeScene:
         v = vertices if vertices.ndim == 1 else np.concatenate([np.ravel(vertices), [0.0]]).astype(np.float32)
         f = np.ascontiguousarray(faces, np.uint32)
         g = api["new_geometry"](api["device"], _GEOMETRY_TRIANGLE)
+        api["geometry_quality"](g, _BUILD_QUALITY_LOW)
         api["shared_buffer"](g, _BUFFER_VERTEX, 0, _FORMAT_FLOAT3, v.ctypes.data, 0, 12, (v.size - 1) // 3)
         api["shared_buffer"](g, _BUFFER_INDEX, 0, _FORMAT_UINT3, f.ctypes.data, 0, 12, len(f))
         api["commit_geometry"](g)

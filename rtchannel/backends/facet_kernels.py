@@ -189,9 +189,11 @@ def _facets_serial(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, t
                    po, out_d, out_p)
 
 
-# Below this many elements a parallel launch costs more than it saves (numba's thread start-up and
-# spinning measured ~9 ms per call on a loaded 2-core machine, against ~0.1 us per element).
-_PARALLEL_MIN = 1_000_000
+# Below this many elements a parallel launch costs more than it saves (~0.1-0.3 us per element against a
+# thread wake-up of tens of us when idle). A bench-walk batch holds ~3e4-1e5 elements: parallel, the gains
+# stage took 0.23 s against 0.33 s serial (benchmarks/bench_facets.py --quick, idle 2 cores). Dataset workers
+# run one numba thread each (`rtchannel.dataset.runner.configure_worker`), so they never oversubscribe.
+_PARALLEL_MIN = 20_000
 
 
 def antenna_amplitudes(spec, position, targets) -> np.ndarray:

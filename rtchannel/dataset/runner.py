@@ -79,7 +79,7 @@ def tune_malloc() -> bool:
 
 
 def configure_worker(backend: str, dr_threads: int | None) -> None:
-    """Limit BLAS/OpenMP (and torch, Dr.Jit) threads in this process; idempotent."""
+    """Limit BLAS/OpenMP (and torch, numba, Dr.Jit) threads in this process; idempotent."""
     if _WORKER["configured"]:
         return
     for k, v in THREAD_ENV.items():
@@ -92,6 +92,9 @@ def configure_worker(backend: str, dr_threads: int | None) -> None:
 
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(1)
+    import numba  # one worker per core: the kernels' parallel loops (synthesis, facets) would only contend
+
+    numba.set_num_threads(1)
     if backend != "points" and dr_threads:
         from rtchannel.scene.llvm import import_mitsuba
 
