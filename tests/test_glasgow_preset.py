@@ -165,3 +165,16 @@ def test_stored_item_is_on_the_glasgow_image_grid(items):
     assert v[0] == pytest.approx(-6 + 12 / 318, abs=1e-4) and v[-1] == pytest.approx(6 - 12 / 318, abs=1e-4)
     assert 0 < t[0] < 0.02 and 4.98 < t[-1] < 5.0
     assert np.isfinite(arrays["p_vt"]).all() and arrays["valid"].any()
+
+
+@pytest.mark.parametrize("legs", [2, 3, 4])
+def test_back_and_forth_walks_are_centred_on_the_activity_spot(items, legs):
+    """With an even number of legs the walk ends where it began; it must still straddle the origin (the
+    radar stands 2.5 m from it: a 2.4 m leg starting at the origin would walk into it)."""
+    it = next(i for i in items if i.activity == "walk" and i.motion["kind"] == "procedural")
+    m = build_motion({**it.motion, "walk_legs": legs, "params": {**it.motion["params"], "distance": 2.4}})
+    hips = m.positions[:, 0, :2]
+    centre = 0.5 * (hips.min(axis=0) + hips.max(axis=0))
+    # the hips' extent is centred within 1 cm (float rounding of the turns); it spans ~2.4 m along x
+    np.testing.assert_allclose(centre, 0.0, atol=0.01)
+    assert np.ptp(hips[:, 0]) > 2.0

@@ -64,8 +64,12 @@ def build_motion(m: dict) -> Motion:
         if m.get("walk_legs", 1) > 1:
             motion = back_and_forth(motion, m["walk_legs"], m["walk_turn_s"])
         if m["start"] == "auto" and m["activity"] == "walk":
-            # a walk centred on the origin: it passes the room centre whatever its heading and length
-            mid = 0.5 * (motion.positions[0, 0, :2] + motion.positions[-1, 0, :2])
+            # a walk centred on the origin: it passes the room centre whatever its heading and length. A
+            # back-and-forth walk with an even number of legs ends where it began: the middle of its path
+            # is then the middle of the hips' extent, not of its end points
+            hips = motion.positions[:, 0, :2]
+            mid = (0.5 * (hips.min(axis=0) + hips.max(axis=0)) if m.get("walk_legs", 1) > 1
+                   else 0.5 * (hips[0] + hips[-1]))
             motion = motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
         if m.get("clip_s") is not None:
             motion = fit_clip(motion, m["clip_s"], m["clip_lead"])
