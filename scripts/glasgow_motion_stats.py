@@ -1,0 +1,66 @@
+"""Motion statistics of real Glasgow images against a simulated dataset stored in the Glasgow image layout.
+
+The glasgow preset's motion ranges (walk legs, walking speed) were set from these numbers on subjects P36-P45
+only (README, sim-to-real). Per activity, medians over recordings of:
+  v95   95th percentile of |mean velocity| over the valid columns [m/s] (how fast the body moves),
+  ext20 velocity extent of p(v,t) within 20 dB of each column's peak [m/s] (torso plus limbs),
+the active time [s] from the first to the last moment the 0.5 s-smoothed mean velocity exceeds 0.15 m/s,
+and for walks: direction changes per 10 s (sign changes of the 0.5 s-smoothed mean velocity beyond
++-0.3 m/s), the share of time slower than 0.3 m/s and the median |mean velocity| [m/s].
+
+Run: python scripts/glasgow_motion_stats.py DATASET [--images DIR] [--people P36-P45]
+"""
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from processing.dataset_store import DatasetReader
+from processing.real_images import load_real_images, parse_people
+
+ACTIVITIES = ("walk", "sit", "stand", "pick", "fall")
+
+
+def clip_stats(p_vt: np.ndarray, velocity: np.ndarray, mean_velocity: np.ndarray, valid: np.ndarray,
+               time: np.ndarray) -> dict:
+    """Statistics of one signature (p(v,t) [V, T], velocity [V] m/s, mean velocity [T] m/s, valid [T], time [T] s)."""
+    valid = valid.astype(bool)
+    cols = p_vt[:, valid] if valid.any() else p_vt
+    ext = [np.ptp(velocity[c >= 0.01 * c.max()]) if c.max() > 0 else 0.0 for c in cols.T]
+    speed = np.abs(mean_velocity[valid]) if valid.any() else np.zeros(1)
+    k = max(1, int(round(0.5 / np.median(np.diff(time)))))
+    smooth = np.convolve(mean_velocity, np.ones(k) / k, mode="same")
+    signs = np.sign(smooth[np.abs(smooth) > 0.3])
+    moving = np.flatnonzero(np.abs(smooth) > 0.15)
+    active = float(time[moving[-1]] - time[moving[0]]) if moving.size else 0.0
+    return {"active_s": active, "v95": float(np.percentile(speed, 95)), "ext20": float(np.median(ext)),
+            "turns_per_10s": float(np.sum(signs[1:] != signs[:-1]) / np.ptp(time) * 10),
+            "slow_share": float(np.mean(np.abs(mean_velocity) < 0.3)), "median_speed": float(np.median(np.abs(mean_velocity)))}
+
+
+def summary(rows: list[dict]) -> str:
+    keys = ("active_s", "v95", "ext20", "turns_per_10s", "slow_share", "median_speed")
+    return "  ".join(f"{k} {np.median([r[k] for r in rows]):.2f}" for k in keys) + f"  (n = {len(rows)})"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("dataset", help="simulated dataset folder (glasgow preset, image layout)")
+    ap.add_argument("--images", default="../shared/realdata/glasgow848/1Dataset")
+    ap.add_argument("--people", default="P36-P45")
+    args = ap.parse_args()
+    real, _ = load_real_images(args.images, people=parse_people(args.people))
+    ds = DatasetReader(args.dataset)
+    for act in ACTIVITIES:
+        r = [clip_stats(im.signature.p_vt, im.signature.velocity, im.signature.mean_velocity, im.signature.valid,
+                        im.signature.time) for im in real if im.activity == act]
+        s = []
+        for i in ds.select(activity=act):
+            a = next(iter(ds.load(i).values()))
+            s.append(clip_stats(a["p_vt"], a["velocity"], a["mean_velocity"], a["valid"], a["time"]))
+        print(f"{act:5s} real {args.people}: {summary(r)}\n{'':5s} simulated: {summary(s)}")
+
+
+if __name__ == "__main__":
+    main()
