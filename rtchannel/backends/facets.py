@@ -57,7 +57,7 @@ is kept (coherent image power of a 2 s walk within 0.4 dB of the 5k image mesh) 
 count drops ~5x.
 
 Cost drivers (see benchmarks/bench_facets.py): one BVH build per traced frame (batched, straight through
-Mitsuba's Embree, ~3 ms CPU per 10k triangles), the Python/numpy work around ~10^4 shadow rays per antenna
+Mitsuba's Embree with its low-quality builder, ~1 ms CPU per 10k triangles), the Python/numpy work around ~10^4 shadow rays per antenna
 and traced frame (x 2 per wall and image facet; the casts themselves are cheap), the compiled gains and
 antenna patterns (~0.2 us per facet path with PO, `facet_kernels`, reading the facets in place), and the
 [frames, paths] output arrays, which also set the synthesiser's cost; the knobs are `trace_fps`, the LOD,
