@@ -73,6 +73,10 @@ def build_motion(m: dict) -> Motion:
             motion = motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
         if m.get("clip_s") is not None:
             motion = fit_clip(motion, m["clip_s"], m["clip_lead"])
+        if m.get("idle") is not None:  # after the clip fit: the held poses before and after move too
+            from rtchannel.motion.idle import IdleMotion, add_idle
+
+            motion = add_idle(motion, IdleMotion(**m["idle"]), m["idle_seed"])
         return motion
     # keyed by the whole motion dict, not m["key"]: motion ids repeat across plans ("fall-00-0000-m00" of
     # any plan), and a process that ran another plan first reused that plan's motion (different bytes)

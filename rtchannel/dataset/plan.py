@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from processing.dsp import DSPConfig
 from processing.waveform import Waveform
+from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
 from rtchannel.radar import Link, direction_angles
 from rtchannel.body.scatterers import SCATTERER_NAMES
@@ -94,6 +95,10 @@ class MotionLayer(_Model):
     clip_s: dict[str, float] = Field(default_factory=dict, description="recording length [s] per activity ('*': "
                                      "any other): motions are padded with their first/last pose (split drawn "
                                      "per motion) or cut to it, as real fixed-length recordings")
+    idle: IdleMotion | None = Field(None, description="small random upper-body movements added to every motion "
+                                    "(rtchannel.motion.idle); null: none")
+    idle_scale: Scalar = Field(1.0, description="factor on the idle amplitudes (or a range, drawn per motion: "
+                               "people differ in how still they keep)")
 
     @field_validator("clip_s")
     @classmethod
@@ -103,6 +108,14 @@ class MotionLayer(_Model):
                 raise ValueError(f"clip_s: {k!r} is not an activity ({', '.join(ACTIVITIES)}) or '*'")
             if not 0.5 <= x <= 600:
                 raise ValueError(f"clip_s.{k}: {x} s outside 0.5-600 s")
+        return v
+
+    @field_validator("idle_scale")
+    @classmethod
+    def _idle_scale(cls, v):
+        for x in (v if isinstance(v, tuple) else (v,)):
+            if not 0 <= x <= 10:
+                raise ValueError(f"idle_scale {x} outside 0-10")
         return v
 
     @field_validator("walk_turn_s")
@@ -456,6 +469,10 @@ def expand(plan: Plan) -> list[WorkItem]:
                 motion.update(walk_legs=ml.walk_legs, walk_turn_s=float(_draw(ml.walk_turn_s, rng)))
             if clip is not None:  # drawn after the seed's draws: plans without clip_s keep their motions
                 motion.update(clip_s=float(clip), clip_lead=float(rng.uniform(0.0, 1.0)))
+            if ml.idle is not None:
+                k = float(_draw(ml.idle_scale, rng))
+                amp = {f: getattr(ml.idle, f) * k for f in ml.idle.model_fields if f.endswith("_deg")}
+                motion.update(idle={**ml.idle.model_dump(mode="json"), **amp}, idle_seed=int(rng.integers(2 ** 31)))
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
                 radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
                          "links": [link.model_dump(mode="json") for link in ls.links], **ph.kit(ls.links)}
