@@ -37,3 +37,16 @@ def test_clip_stats_of_a_still_clip_have_no_motion():
     p = np.ones((v.size, t.size))
     s = stats.clip_stats(p, v, np.zeros(t.size), np.zeros(t.size, bool), t)
     assert (s["v95"], s["turns_per_10s"], s["active_s"], s["slow_share"]) == (0.0, 0.0, 0.0, 1.0)
+
+
+def test_lobes_of_a_stoop_and_rise():
+    # a pick: +0.5 m/s for 0.8 s from 1.0 s, then -0.4 m/s for 0.8 s from 2.2 s (0.01 s bins); the 0.3 s
+    # box smoothing keeps a plateau longer than 0.3 s at its value, and the first sample of each smoothed
+    # plateau lies 0.15 s after the rectangle's start: peaks at 1.15 s and 2.35 s, 1.2 s apart
+    t = np.arange(0.0, 5.0, 0.01)
+    v = np.linspace(-6, 6, 321)
+    mv = np.where((t >= 1.0) & (t < 1.8), 0.5, 0.0) + np.where((t >= 2.2) & (t < 3.0), -0.4, 0.0)
+    p = np.exp(-0.5 * ((v[:, None] - mv[None]) / 0.2) ** 2)
+    s = stats.clip_stats(p, v, mv, np.ones(t.size, bool), t)
+    assert s["fwd"] == pytest.approx(0.5, abs=1e-9) and s["back"] == pytest.approx(0.4, abs=1e-9)
+    assert s["gap"] == pytest.approx(1.2, abs=0.02)
