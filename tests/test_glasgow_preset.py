@@ -49,6 +49,11 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     assert sum(a == "walk" for a, _ in files) == 10
     # frontal falls only: generator seed = 0 (mod 3) is the forward fall
     assert all(it.motion["params"]["seed"] % 3 == 0 for it in items if it.activity == "fall")
+    # per-part RCS shares at 5.8 GHz on the area law (the preset's header): trunk up, shins and feet down
+    for it in items[:2]:
+        scale = it.gain_set["scale"]
+        assert scale["chest"] == scale["pelvis"] > 1 > scale["left_shin"] > scale["left_foot"] == scale["right_toe"]
+    assert {it.gain_set["name"] for it in items} == {"rcs", "rcs_jitter"}
     # sit and stand get a chair on the mesh backends (the points backend is free space)
     assert all(it.chair == "auto" for it in items)
 
