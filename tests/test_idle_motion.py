@@ -132,3 +132,19 @@ def test_glasgow_items_carry_idle_motion_and_it_survives_the_mti():
     assert late.sum() >= 10
     assert not out["still"][0].any()
     assert out["idle"][0].all() and np.abs(out["idle"][1]).max() < 0.3
+
+
+def test_plan_draws_the_idle_factor_per_motion_and_rejects_one_out_of_range(tmp_path):
+    from rtchannel.dataset.plan import expand, load_plan
+
+    plan = load_plan("glasgow").model_dump(mode="json")
+    plan["motion"]["idle_scale"] = [0.0, 1.0]
+    items = expand(type(load_plan("glasgow")).model_validate(plan))
+    elbow = {it.motion["key"]: it.motion["idle"]["elbow_deg"] for it in items}
+    assert len(set(elbow.values())) == len(elbow) > 60  # one draw per motion, shared by its items
+    assert 0.0 <= min(elbow.values()) and max(elbow.values()) <= 2.0
+    plan["motion"]["idle_scale"] = [0.0, 10.0]  # wrists 27 deg: within 30; elbows 20 deg: within 30
+    type(load_plan("glasgow")).model_validate(plan)
+    plan["motion"]["idle"]["wrist_deg"] = 5.0  # 50 deg at the top of the range
+    with pytest.raises(ValidationError, match="idle_scale 10.0 takes the idle amplitudes out of range"):
+        type(load_plan("glasgow")).model_validate(plan)

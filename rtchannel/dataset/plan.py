@@ -20,6 +20,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from processing.dsp import DSPConfig
+from processing.errors import one_line
 from processing.waveform import Waveform
 from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
@@ -117,6 +118,16 @@ class MotionLayer(_Model):
             if not 0 <= x <= 10:
                 raise ValueError(f"idle_scale {x} outside 0-10")
         return v
+
+    @model_validator(mode="after")
+    def _idle_amplitudes(self):
+        if self.idle is not None:  # the largest drawn factor must still give valid amplitudes
+            hi = max(self.idle_scale) if isinstance(self.idle_scale, tuple) else self.idle_scale
+            try:
+                self.idle.scaled(hi)
+            except ValidationError as e:
+                raise ValueError(f"idle_scale {hi} takes the idle amplitudes out of range: {one_line(e)}") from None
+        return self
 
     @field_validator("walk_turn_s")
     @classmethod
@@ -470,9 +481,8 @@ def expand(plan: Plan) -> list[WorkItem]:
             if clip is not None:  # drawn after the seed's draws: plans without clip_s keep their motions
                 motion.update(clip_s=float(clip), clip_lead=float(rng.uniform(0.0, 1.0)))
             if ml.idle is not None:
-                k = float(_draw(ml.idle_scale, rng))
-                amp = {f: getattr(ml.idle, f) * k for f in ml.idle.model_fields if f.endswith("_deg")}
-                motion.update(idle={**ml.idle.model_dump(mode="json"), **amp}, idle_seed=int(rng.integers(2 ** 31)))
+                idle = ml.idle.scaled(float(_draw(ml.idle_scale, rng)))
+                motion.update(idle=idle.model_dump(mode="json"), idle_seed=int(rng.integers(2 ** 31)))
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
                 radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
                          "links": [link.model_dump(mode="json") for link in ls.links], **ph.kit(ls.links)}
