@@ -214,3 +214,16 @@ def test_unknown_activity_and_bad_durations():
         generate("sit", duration=0.2)
     with pytest.raises(ValueError, match="distance"):
         generate("walk", distance=4.0, duration=10.0)
+
+
+@pytest.mark.parametrize("hold", [0.0, 0.13, 0.3])
+def test_pick_holds_the_bottom_for_its_hold_fraction(hold):
+    """The pick's depth follows w(u) = S(u / t_down) - S((u - t_down - hold) / (1 - t_down - hold)) with S a
+    minimum-jerk step, so w = 1 (the hips at their lowest) for exactly hold x duration; minimum jerk leaves
+    1 - S(x) ~ 10 (1 - x)^3 near the ends, under 1e-6 for the last ~0.5 % of each edge (< 1 frame here).
+    The hips' height is linear in w at the bottom, so the frames within 0.1 um of its minimum are the hold."""
+    duration, fps = 2.8, 60.0
+    m = generate("pick", seed=1, duration=duration, fps=fps, hold_fraction=hold)
+    z = m.positions[:, 0, 2]
+    frames = int(np.sum(z - z.min() < 1e-7))
+    assert frames == pytest.approx(hold * duration * fps + 1, abs=2)

@@ -76,6 +76,8 @@ class ProceduralParams(BaseModel):
     fps: float = Field(60.0, ge=10, le=2000, description="frame rate [Hz]")
     pad_before: float = Field(0.5, ge=0, le=30, description="quiet time before the activity [s]")
     pad_after: float = Field(0.5, ge=0, le=30, description="quiet time after the activity [s]")
+    hold_fraction: float | None = Field(None, ge=0, le=0.4, description="pick: share of the duration spent "
+                                        "at the bottom (None: 0.13)")
 
     @model_validator(mode="after")
     def _cadence(self) -> "ProceduralParams":
@@ -133,7 +135,10 @@ def generate(activity: str, params: ProceduralParams | None = None, **overrides)
         if activity == "fall":
             rot, pos = _fall(rig, u, rng, direction=("forward", "left", "right")[p.seed % 3])
         else:
-            rot, pos = {"sit": _sit, "stand": _stand, "pick": _pick}[activity](rig, u, rng)
+            if activity == "pick":
+                rot, pos = _pick(rig, u, rng, 0.13 if p.hold_fraction is None else p.hold_fraction)
+            else:
+                rot, pos = {"sit": _sit, "stand": _stand}[activity](rig, u, rng)
     pos = pos - np.r_[pos[0, 0, :2], 0.0]  # the hips start over the origin, then over `start`
     motion = Motion(rig=rig, fps=float(p.fps), rotations=rot, positions=pos, activity=activity,
                     params={**p.model_dump(mode="json"), "activity": activity})
@@ -217,13 +222,13 @@ def _chair(rig: Rig, u, rng, to_seat: bool):
     return _planted(rig, root, pelvis, trunk - pelvis, -0.5 * trunk, arms, feet)
 
 
-def _pick(rig: Rig, u, rng):
+def _pick(rig: Rig, u, rng, hold: float):
     """Bend (trunk flexion + knee bend) until the right hand nears the floor, pause, return upright."""
     s = rig.height / NOMINAL_HEIGHT_M
     feet, z_stand = _standing(rig)
     target = 0.12 * s * _jitter(rng)  # right wrist height at the bottom [m]
     squat = _jitter(rng, 0.15)  # more knee bend (squat) or more trunk flexion (stoop)
-    t_down, t_hold = 0.40 * _jitter(rng, 0.08), 0.13
+    t_down, t_hold = 0.40 * _jitter(rng, 0.08), hold
 
     def posture(depth, w):
         trunk = 75.0 * depth / squat ** 0.5 * w
