@@ -36,6 +36,14 @@ _NAME = r"^[A-Za-z0-9_\-]+$"
 _RESERVED_PROC = {"height", "heading_deg", "start", "seed", "fps"}
 
 
+def _within(v, lo: float, hi: float, name: str, unit: str = ""):
+    """`v` (a value or a (low, high) range) when every value lies in [lo, hi]; ValueError naming it otherwise."""
+    for x in (v if isinstance(v, tuple) else (v,)):
+        if not lo <= x <= hi:
+            raise ValueError(f"{name} {x}{unit} outside {lo:g}-{hi:g}{unit}")
+    return v
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
@@ -114,10 +122,7 @@ class MotionLayer(_Model):
     @field_validator("idle_scale")
     @classmethod
     def _idle_scale(cls, v):
-        for x in (v if isinstance(v, tuple) else (v,)):
-            if not 0 <= x <= 10:
-                raise ValueError(f"idle_scale {x} outside 0-10")
-        return v
+        return _within(v, 0.0, 10.0, "idle_scale")
 
     @model_validator(mode="after")
     def _idle_amplitudes(self):
@@ -132,10 +137,7 @@ class MotionLayer(_Model):
     @field_validator("walk_turn_s")
     @classmethod
     def _turn(cls, v):
-        for x in (v if isinstance(v, tuple) else (v,)):
-            if not 0.1 <= x <= 10:
-                raise ValueError(f"walk_turn_s {x} s outside 0.1-10 s")
-        return v
+        return _within(v, 0.1, 10.0, "walk_turn_s", " s")
 
     @field_validator("heights", "time_scales", "headings_deg")
     @classmethod

@@ -39,6 +39,7 @@ from rtchannel.motion.activities import ACTIVITIES
 
 _DEFAULT_DURATION_S = {"fall": 1.5, "sit": 2.3, "stand": 1.9, "pick": 2.8}
 _DURATION_RANGE_S = {"fall": (0.8, 3.0), "sit": (1.0, 5.0), "stand": (1.0, 5.0), "pick": (1.5, 8.0)}
+PICK_HOLD = 0.13  # share of a pick spent still at the bottom unless hold_fraction says otherwise
 _CADENCE_RANGE = (1.4, 2.3)  # steps/s accepted for an explicit step length
 STAND_KNEE_DEG = 3.0  # geometric knee flexion of quiet standing
 SEAT_HEIGHT_M = 0.45  # chair seat for a 1.75 m adult
@@ -77,7 +78,7 @@ class ProceduralParams(BaseModel):
     pad_before: float = Field(0.5, ge=0, le=30, description="quiet time before the activity [s]")
     pad_after: float = Field(0.5, ge=0, le=30, description="quiet time after the activity [s]")
     hold_fraction: float | None = Field(None, ge=0, le=0.4, description="pick: share of the duration spent "
-                                        "at the bottom (None: 0.13)")
+                                        "at the bottom (None: PICK_HOLD, 0.13)")
 
     @model_validator(mode="after")
     def _cadence(self) -> "ProceduralParams":
@@ -134,11 +135,10 @@ def generate(activity: str, params: ProceduralParams | None = None, **overrides)
         u = (t - p.pad_before) / duration
         if activity == "fall":
             rot, pos = _fall(rig, u, rng, direction=("forward", "left", "right")[p.seed % 3])
+        elif activity == "pick":
+            rot, pos = _pick(rig, u, rng, PICK_HOLD if p.hold_fraction is None else p.hold_fraction)
         else:
-            if activity == "pick":
-                rot, pos = _pick(rig, u, rng, 0.13 if p.hold_fraction is None else p.hold_fraction)
-            else:
-                rot, pos = {"sit": _sit, "stand": _stand}[activity](rig, u, rng)
+            rot, pos = {"sit": _sit, "stand": _stand}[activity](rig, u, rng)
     pos = pos - np.r_[pos[0, 0, :2], 0.0]  # the hips start over the origin, then over `start`
     motion = Motion(rig=rig, fps=float(p.fps), rotations=rot, positions=pos, activity=activity,
                     params={**p.model_dump(mode="json"), "activity": activity})
