@@ -5,6 +5,7 @@ only (README, sim-to-real). Per activity, medians over recordings of:
   v95   95th percentile of |mean velocity| over the valid columns [m/s] (how fast the body moves),
   ext20 velocity extent of p(v,t) within 20 dB of each column's peak [m/s] (torso plus limbs),
 the active time [s] from the first to the last moment the 0.5 s-smoothed mean velocity exceeds 0.15 m/s,
+the onset [s], the first of these moments (where in the recording the activity starts),
 and for walks: direction changes per 10 s (sign changes of the 0.5 s-smoothed mean velocity beyond
 +-0.3 m/s), the share of time slower than 0.3 m/s and the median |mean velocity| [m/s]; the lobes of the
 0.3 s-smoothed mean velocity: fwd (its maximum, toward the radar) and back (minus its minimum) [m/s] and
@@ -36,17 +37,18 @@ def clip_stats(p_vt: np.ndarray, velocity: np.ndarray, mean_velocity: np.ndarray
     signs = np.sign(smooth[np.abs(smooth) > 0.3])
     moving = np.flatnonzero(np.abs(smooth) > 0.15)
     active = float(time[moving[-1]] - time[moving[0]]) if moving.size else 0.0
+    onset = float(time[moving[0]]) if moving.size else float("nan")
     k3 = max(1, int(round(0.3 / np.median(np.diff(time)))))
     lobes = np.convolve(mean_velocity, np.ones(k3) / k3, mode="same")
     return {"fwd": float(lobes.max()), "back": float(-lobes.min()),
-            "gap": float(time[np.argmin(lobes)] - time[np.argmax(lobes)]), "active_s": active, "v95": float(np.percentile(speed, 95)), "ext20": float(np.median(ext)),
+            "gap": float(time[np.argmin(lobes)] - time[np.argmax(lobes)]), "active_s": active, "onset_s": onset, "v95": float(np.percentile(speed, 95)), "ext20": float(np.median(ext)),
             "turns_per_10s": float(np.sum(signs[1:] != signs[:-1]) / np.ptp(time) * 10),
             "slow_share": float(np.mean(np.abs(mean_velocity) < 0.3)), "median_speed": float(np.median(np.abs(mean_velocity)))}
 
 
 def summary(rows: list[dict]) -> str:
-    keys = ("active_s", "v95", "ext20", "turns_per_10s", "slow_share", "median_speed", "fwd", "back", "gap")
-    return "  ".join(f"{k} {np.median([r[k] for r in rows]):.2f}" for k in keys) + f"  (n = {len(rows)})"
+    keys = ("onset_s", "active_s", "v95", "ext20", "turns_per_10s", "slow_share", "median_speed", "fwd", "back", "gap")
+    return "  ".join(f"{k} {np.nanmedian([r[k] for r in rows]):.2f}" for k in keys) + f"  (n = {len(rows)})"
 
 
 def main() -> None:

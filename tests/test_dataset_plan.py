@@ -68,6 +68,8 @@ def test_other_plan_seed_changes_draws(tmp_path):
     ({"physical": {"waveforms": [{"pri_s": -1}]}}, "physical.waveforms.0.pri_s"),
     ({"signal": {"gain_sets": [{"name": "g", "scale": {"nose": 2}}]}}, "signal.gain_sets.0.scale"),
     ({"storage": {"items_per_shard": 0}}, "storage.items_per_shard"),
+    ({"motion": {**BASE["motion"], "clip_start_s": [-40.0, 1.0]}}, "motion.clip_start_s"),
+    ({"motion": {**BASE["motion"], "clip_start_s": {"dance": 0.2}}}, "motion.clip_start_s"),
     ({"backend_option": {}}, "backend_option"),
 ])
 def test_invalid_field_is_one_clear_error(tmp_path, capsys, patch, field):
@@ -132,3 +134,31 @@ def test_sionna_subset_preset_holds_the_seed_motions():
         twin = seed[key(it)]
         assert (it.motion, it.radar, it.angle_deg, it.activity) == (twin.motion, twin.radar, twin.angle_deg,
                                                                     twin.activity)
+
+
+def test_clip_start_per_activity_places_the_motion_in_its_recording(tmp_path):
+    """clip_start_s: where in its recording a motion begins, drawn per motion and per activity; a negative
+    time starts the recording inside the motion."""
+    import numpy as np
+
+    from rtchannel.dataset.items import build_motion
+
+    plan = {**BASE, "motion": {**BASE["motion"], "sources": [
+        {"procedural": "fall", "variants": 2, "params": {"pad_before": 0.0, "duration": 1.0}},
+        {"procedural": "sit", "variants": 2, "params": {"pad_before": 0.0, "duration": 1.0}}],
+        "time_scales": [1.0], "clip_s": {"*": 5.0}, "clip_start_s": {"fall": 0.3, "sit": [-0.5, 0.5]}}}
+    items = expand(load_plan(_write(tmp_path, plan)))
+    starts = {it.motion["key"]: (it.activity, it.motion["clip_start_s"]) for it in items}
+    assert {x for a, x in starts.values() if a == "fall"} == {0.3}
+    sit = [x for a, x in starts.values() if a == "sit"]
+    assert all(-0.5 <= x <= 0.5 for x in sit) and len(set(sit)) == len(sit) == 4  # one draw per motion
+    for it in [next(i for i in items if i.activity == "fall")] + [i for i in items if i.activity == "sit"]:
+        m = build_motion(it.motion)
+        assert m.n_frames == 5 * 60 + 1
+        whole = build_motion({k: v for k, v in it.motion.items() if not k.startswith("clip")} | {"key": "w"})
+        # recording frame k shows motion frame k - 60 start (held at the ends): the first pose before the
+        # motion begins, the motion cut by -start seconds when it began before the recording
+        first = round(it.motion["clip_start_s"] * 60)
+        idx = np.clip(np.arange(m.n_frames) - first, 0, whole.n_frames - 1)
+        np.testing.assert_array_equal(m.positions, whole.positions[idx])
+    assert min(sit) < 0 < max(sit)  # both cases were checked

@@ -54,6 +54,10 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
         scale = it.gain_set["scale"]
         assert scale["chest"] == scale["pelvis"] > 1 > scale["left_shin"] > scale["left_foot"] == scale["right_toe"]
     assert {it.gain_set["name"] for it in items} == {"rcs", "rcs_jitter"}
+    # activities start early in their recordings, some already under way (the preset's header); walks fill theirs
+    starts = [it.motion.get("clip_start_s") for it in items]
+    assert all((x is None) == (it.activity == "walk") for x, it in zip(starts, items))
+    assert -0.4 <= min(x for x in starts if x is not None) < 0 < max(x for x in starts if x is not None) <= 1.2
     # sit and stand get a chair on the mesh backends (the points backend is free space)
     assert all(it.chair == "auto" for it in items)
 
@@ -105,6 +109,12 @@ def test_back_and_forth_returns_along_its_path_and_fit_clip_holds_poses():
     assert cut.n_frames == round(leg.fps) + 1
     with pytest.raises(ValueError):
         fit_clip(leg, 1.0, lead=2.0)
+    # a recording begun before the motion or inside it, but never one that misses it
+    late = fit_clip(leg, 1.0, start_s=-0.5)
+    np.testing.assert_array_equal(late.positions, leg.positions[30:91])
+    for start in (-leg.duration, 1.0):
+        with pytest.raises(ValueError, match="leaves nothing"):
+            fit_clip(leg, 1.0, start_s=start)
 
 
 def test_cli_radar_preset_errors_are_one_line(tmp_path, capsys):

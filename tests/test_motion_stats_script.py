@@ -37,6 +37,7 @@ def test_clip_stats_of_a_still_clip_have_no_motion():
     p = np.ones((v.size, t.size))
     s = stats.clip_stats(p, v, np.zeros(t.size), np.zeros(t.size, bool), t)
     assert (s["v95"], s["turns_per_10s"], s["active_s"], s["slow_share"]) == (0.0, 0.0, 0.0, 1.0)
+    assert np.isnan(s["onset_s"])  # no activity, no onset (the summary's median skips it)
 
 
 def test_lobes_of_a_stoop_and_rise():
@@ -50,3 +51,6 @@ def test_lobes_of_a_stoop_and_rise():
     s = stats.clip_stats(p, v, mv, np.ones(t.size, bool), t)
     assert s["fwd"] == pytest.approx(0.5, abs=1e-9) and s["back"] == pytest.approx(0.4, abs=1e-9)
     assert s["gap"] == pytest.approx(1.2, abs=0.02)
+    # onset: the 0.5 s box average of the +0.5 m/s step exceeds 0.15 m/s once 0.15 s of the step lies in the
+    # box, i.e. with the box centred 0.25 - 0.15 = 0.10 s before the step: 0.90 s
+    assert s["onset_s"] == pytest.approx(0.90, abs=0.015)

@@ -44,6 +44,14 @@ def _within(v, lo: float, hi: float, name: str, unit: str = ""):
     return v
 
 
+def _per_activity(v: dict, name: str) -> dict:
+    """`v` when its keys are activities or '*'; ValueError naming the first other key."""
+    for k in v:
+        if k != "*" and k not in ACTIVITIES:
+            raise ValueError(f"{name}: {k!r} is not an activity ({', '.join(ACTIVITIES)}) or '*'")
+    return v
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
@@ -104,6 +112,10 @@ class MotionLayer(_Model):
     clip_s: dict[str, float] = Field(default_factory=dict, description="recording length [s] per activity ('*': "
                                      "any other): motions are padded with their first/last pose (split drawn "
                                      "per motion) or cut to it, as real fixed-length recordings")
+    clip_start_s: Scalar | dict[str, Scalar] | None = Field(
+        None, description="time of a motion's first frame in its recording [s] (or a range, drawn per motion; or "
+        "these per activity, '*': any other); negative: the recording begins that far into the motion. None: "
+        "the motion lies inside its recording, its padding split at random")
     idle: IdleMotion | None = Field(None, description="small random upper-body movements added to every motion "
                                     "(rtchannel.motion.idle); null: none")
     idle_scale: Scalar = Field(1.0, description="factor on the idle amplitudes (or a range, drawn per motion: "
@@ -112,11 +124,16 @@ class MotionLayer(_Model):
     @field_validator("clip_s")
     @classmethod
     def _clips(cls, v):
-        for k, x in v.items():
-            if k != "*" and k not in ACTIVITIES:
-                raise ValueError(f"clip_s: {k!r} is not an activity ({', '.join(ACTIVITIES)}) or '*'")
+        for k, x in _per_activity(v, "clip_s").items():
             if not 0.5 <= x <= 600:
                 raise ValueError(f"clip_s.{k}: {x} s outside 0.5-600 s")
+        return v
+
+    @field_validator("clip_start_s")
+    @classmethod
+    def _start(cls, v):
+        for k, x in (_per_activity(v, "clip_start_s") if isinstance(v, dict) else {"": v}).items():
+            _within(x, -30.0, 600.0, f"clip_start_s.{k}" if k else "clip_start_s", " s")
         return v
 
     @field_validator("idle_scale")
@@ -482,6 +499,10 @@ def expand(plan: Plan) -> list[WorkItem]:
                 motion.update(walk_legs=ml.walk_legs, walk_turn_s=float(_draw(ml.walk_turn_s, rng)))
             if clip is not None:  # drawn after the seed's draws: plans without clip_s keep their motions
                 motion.update(clip_s=float(clip), clip_lead=float(rng.uniform(0.0, 1.0)))
+                start = ml.clip_start_s.get(act, ml.clip_start_s.get("*")) if isinstance(ml.clip_start_s, dict) \
+                    else ml.clip_start_s
+                if start is not None:  # drawn after the lead: plans without clip_start_s keep their motions
+                    motion.update(clip_start_s=float(_draw(start, rng)))
             if ml.idle is not None:
                 idle = ml.idle.scaled(float(_draw(ml.idle_scale, rng)))
                 motion.update(idle=idle.model_dump(mode="json"), idle_seed=int(rng.integers(2 ** 31)))

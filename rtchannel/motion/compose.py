@@ -70,22 +70,30 @@ def back_and_forth(leg: Motion, legs: int, turn_s: float) -> Motion:
                    params={**leg.params, "back_and_forth": {"legs": int(legs), "turn_s": float(turn_s)}})
 
 
-def fit_clip(motion: Motion, clip_s: float, lead: float = 0.5) -> Motion:
-    """The motion as a recording of exactly `clip_s` seconds: a shorter motion is padded by holding its
-    first and last pose (a share `lead` in [0, 1] of the padding before it), a longer one is cut after
-    `clip_s` seconds."""
+def fit_clip(motion: Motion, clip_s: float, lead: float = 0.5, start_s: float | None = None) -> Motion:
+    """The motion as a recording of exactly `clip_s` seconds. With `start_s` [s] the motion's first frame
+    sits at that time of the recording, its first pose held before it; a negative `start_s` starts the
+    recording -start_s seconds into the motion (a recording begun late). Without it a shorter motion is
+    padded by holding its first and last pose, a share `lead` in [0, 1] of the padding before it. Whatever
+    runs past `clip_s` is cut; a recording that outlasts the motion holds its last pose."""
     if not 0 < clip_s <= 600:
         raise ValueError(f"clip_s must be in (0, 600] s, got {clip_s}")
     if not 0 <= lead <= 1:
         raise ValueError(f"lead must be in [0, 1], got {lead}")
+    if start_s is not None and not -motion.duration < start_s < clip_s:
+        raise ValueError(f"start_s {start_s} s leaves nothing of a {motion.duration:.2f} s motion in a {clip_s} s clip")
     n = int(round(clip_s * motion.fps)) + 1
-    if motion.n_frames >= n:
-        pos, rot = motion.positions[:n], motion.rotations[:n]
+    if start_s is not None:
+        first = int(round(start_s * motion.fps))  # recording frame of the motion's first frame
+        idx = np.clip(np.arange(n) - first, 0, motion.n_frames - 1)
+    elif motion.n_frames >= n:
+        idx = np.arange(n)
     else:
         pad = n - motion.n_frames
         before = int(round(lead * pad))
         idx = np.concatenate([np.zeros(before, int), np.arange(motion.n_frames),
                               np.full(pad - before, motion.n_frames - 1)])
-        pos, rot = motion.positions[idx], motion.rotations[idx]
-    return replace(motion, positions=pos, rotations=rot,
-                   params={**motion.params, "clip": {"clip_s": float(clip_s), "lead": float(lead)}})
+    clip = {"clip_s": float(clip_s), "lead": float(lead)} if start_s is None else \
+        {"clip_s": float(clip_s), "start_s": float(start_s)}
+    return replace(motion, positions=motion.positions[idx], rotations=motion.rotations[idx],
+                   params={**motion.params, "clip": clip})
