@@ -41,13 +41,17 @@ def clip_stats(p_vt: np.ndarray, velocity: np.ndarray, mean_velocity: np.ndarray
     k3 = max(1, int(round(0.3 / np.median(np.diff(time)))))
     lobes = np.convolve(mean_velocity, np.ones(k3) / k3, mode="same")
     return {"fwd": float(lobes.max()), "back": float(-lobes.min()),
-            "gap": float(time[np.argmin(lobes)] - time[np.argmax(lobes)]), "active_s": active, "onset_s": onset, "v95": float(np.percentile(speed, 95)), "ext20": float(np.median(ext)),
+            "gap": float(time[np.argmin(lobes)] - time[np.argmax(lobes)]),
+            "active_s": active, "onset_s": onset,
+            "v95": float(np.percentile(speed, 95)), "ext20": float(np.median(ext)),
             "turns_per_10s": float(np.sum(signs[1:] != signs[:-1]) / np.ptp(time) * 10),
-            "slow_share": float(np.mean(np.abs(mean_velocity) < 0.3)), "median_speed": float(np.median(np.abs(mean_velocity)))}
+            "slow_share": float(np.mean(np.abs(mean_velocity) < 0.3)),
+            "median_speed": float(np.median(np.abs(mean_velocity)))}
 
 
 def summary(rows: list[dict]) -> str:
-    keys = ("onset_s", "active_s", "v95", "ext20", "turns_per_10s", "slow_share", "median_speed", "fwd", "back", "gap")
+    keys = ("onset_s", "active_s", "v95", "ext20", "turns_per_10s", "slow_share", "median_speed", "fwd", "back",
+            "gap")
     return "  ".join(f"{k} {np.nanmedian([r[k] for r in rows]):.2f}" for k in keys) + f"  (n = {len(rows)})"
 
 

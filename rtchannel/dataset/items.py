@@ -72,7 +72,7 @@ def build_motion(m: dict) -> Motion:
                    else 0.5 * (hips[0] + hips[-1]))
             motion = motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
         if m.get("clip_s") is not None:
-            motion = fit_clip(motion, m["clip_s"], m.get("clip_lead", 0.5), m.get("clip_start_s"))
+            motion = fit_clip(motion, m["clip_s"], m["clip_lead"], m.get("clip_start_s"))
         if m.get("idle") is not None:  # after the clip fit: the held poses before and after move too
             from rtchannel.motion.idle import IdleMotion, add_idle
 

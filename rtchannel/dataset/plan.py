@@ -44,6 +44,11 @@ def _within(v, lo: float, hi: float, name: str, unit: str = ""):
     return v
 
 
+def _for_activity(v, activity: str):
+    """A per-activity setting's value for `activity` ('*' for any other; None if neither), or `v` itself."""
+    return v.get(activity, v.get("*")) if isinstance(v, dict) else v
+
+
 def _per_activity(v: dict, name: str) -> dict:
     """`v` when its keys are activities or '*'; ValueError naming the first other key."""
     for k in v:
@@ -494,13 +499,12 @@ def expand(plan: Plan) -> list[WorkItem]:
             start = st if st == "auto" else [float(_draw(x, rng)) for x in st]
             motion = {**base, "fps": ml.fps, "height": _draw(h, rng), "time_scale": float(_draw(ts, rng)),
                       "mirror": mirror, "heading_deg": float(_draw(hd, rng)), "start": start, "key": motion_id}
-            clip = ml.clip_s.get(act, ml.clip_s.get("*"))
+            clip = _for_activity(ml.clip_s, act)
             if act == "walk" and ml.walk_legs > 1:
                 motion.update(walk_legs=ml.walk_legs, walk_turn_s=float(_draw(ml.walk_turn_s, rng)))
             if clip is not None:  # drawn after the seed's draws: plans without clip_s keep their motions
                 motion.update(clip_s=float(clip), clip_lead=float(rng.uniform(0.0, 1.0)))
-                start = ml.clip_start_s.get(act, ml.clip_start_s.get("*")) if isinstance(ml.clip_start_s, dict) \
-                    else ml.clip_start_s
+                start = _for_activity(ml.clip_start_s, act)
                 if start is not None:  # drawn after the lead: plans without clip_start_s keep their motions
                     motion.update(clip_start_s=float(_draw(start, rng)))
             if ml.idle is not None:
