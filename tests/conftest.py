@@ -14,3 +14,19 @@ def moving_point_paths(ranges: np.ndarray, times: np.ndarray, gain: complex = 1.
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture
+def shared_data():
+    """Path of a third-party data file (relative path as in the data registry); skips when absent."""
+    from thirdparty import data_path
+
+    return data_path
+
+
+@pytest.fixture(scope="session")
+def glasgow_dir(tmp_path_factory):
+    """A folder of the twelve real Glasgow test images (skips when they are not available)."""
+    from thirdparty import glasgow_folder
+
+    return glasgow_folder(tmp_path_factory.mktemp("glasgow"))

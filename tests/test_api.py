@@ -40,7 +40,8 @@ def _python_blocks(md: Path) -> list[str]:
     return re.findall(r"```python\n(.*?)```", md.read_text(), flags=re.S)
 
 
-def test_walkthrough_runs(capsys):
+def test_walkthrough_runs(capsys, shared_data):
+    shared_data("mocap/cmu/sit/75_17.bvh")  # the walkthrough imports a CMU take through the data registry
     blocks = _python_blocks(REPO / "docs" / "walkthrough.md")
     assert len(blocks) >= 5
     namespace: dict = {}

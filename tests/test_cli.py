@@ -9,7 +9,6 @@ import pytest
 from rtchannel.cli import main
 
 COMMANDS = ["simulate", "render", "bench", "compare", "dataset", "train", "evaluate", "crossval"]
-from rtchannel.scene.assets import mocap_dir
 
 
 def test_help_for_every_command(capsys):
@@ -73,9 +72,9 @@ def test_console_script_entry_point(tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "nope" in r.stderr
 
 
-def test_simulate_motion_capture_file(tmp_path):
+def test_simulate_motion_capture_file(tmp_path, shared_data):
     out = tmp_path / "mocap"
-    bvh = mocap_dir() / "walk" / "07_02_iclone.bvh"
+    bvh = shared_data("mocap/cmu/walk/07_02_iclone.bvh")
     assert main(["simulate", "--motion-file", str(bvh), "--start", "-2", "0", "--out", str(out),
                  "--quiet", "--no-plots"]) == 0
     with h5py.File(out / "signature.h5") as f:
@@ -115,7 +114,7 @@ def test_compare_accepts_comma_separated_backends(tmp_path):
 
 
 # --- issue 13: every user-error type reaches the command line as one line and exit status 2
-def test_user_error_types_are_one_line_exit_2(tmp_path, capsys):
+def test_user_error_types_are_one_line_exit_2(tmp_path, capsys, shared_data):
     from rtchannel.errors import USER_ERRORS, ConfigError, SceneFileError
     from processing.errors import CheckpointError, DatasetFormatError, InputError, TrainingError
     from processing.ancortek import AncortekFormatError
@@ -125,14 +124,14 @@ def test_user_error_types_are_one_line_exit_2(tmp_path, capsys):
         assert issubclass(cls, InputError) and issubclass(cls, USER_ERRORS)
     assert isinstance(MotionImportError("x.bvh", "bad", line=3), USER_ERRORS)
     take = tmp_path / "take.bvh"
-    take.write_text((mocap_dir() / "sit" / "75_17.bvh").read_text().replace("Frame Time: 0.0333332", "Frame Time: 1e300", 1))
+    take.write_text(shared_data("mocap/cmu/sit/75_17.bvh").read_text().replace("Frame Time: 0.0333332", "Frame Time: 1e300", 1))
     assert main(["simulate", "--motion-file", str(take), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     line = _one_error_line(capsys)
     assert "take.bvh, line" in line and "frame time 1e300" in line
 
 
-def test_resampling_a_motion_file_to_an_absurd_rate_is_refused(tmp_path, capsys):
-    take = mocap_dir() / "sit" / "75_17.bvh"
+def test_resampling_a_motion_file_to_an_absurd_rate_is_refused(tmp_path, capsys, shared_data):
+    take = shared_data("mocap/cmu/sit/75_17.bvh")
     assert main(["simulate", "--motion-file", str(take), "--fps", "1e6", "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert "fps: " in _one_error_line(capsys)
 

@@ -17,7 +17,6 @@ from rtchannel.dataset.plan import expand, load_plan
 from rtchannel.dataset.runner import PlanMismatchError, run_plan
 
 REPO = Path(__file__).resolve().parents[1]
-from rtchannel.scene.assets import mocap_dir
 SHORT = {"pad_before": 0.2, "pad_after": 0.2}  # 1.3-1.4 s motions keep every item near 0.1 s
 
 
@@ -112,11 +111,10 @@ def test_same_config_same_signatures_other_seed_differs(tmp_path, reference):
                  progress=False)
 
 
-def test_bad_motion_file_is_reported_per_item_and_the_run_completes(tmp_path, capsys):
+def test_bad_motion_file_is_reported_per_item_and_the_run_completes(tmp_path, capsys, shared_data):
     folder = tmp_path / "takes"
     folder.mkdir()
-    good = mocap_dir() / "walk" / "02_01_iclone.bvh"
-    assert good.is_file(), f"mocap data missing: {good}"
+    good = shared_data("mocap/cmu/walk/02_01_iclone.bvh")
     (folder / "a_good.bvh").symlink_to(good)
     (folder / "b_broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")  # truncated
     data = {"name": "files", "motion": {"sources": [{"files": str(folder), "activity": "walk"},

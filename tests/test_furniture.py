@@ -21,7 +21,7 @@ from rtchannel.scene.chair_fit import (chair_for, chair_penetration, procedural_
 from rtchannel.scene.furniture import (BACK_TOP_ABOVE_SEAT_M, LEG_SECTION_M, SEAT_DEPTH_M, SEAT_THICKNESS_M,
                                        SEAT_WIDTH_M, Furniture, chair_boxes, chair_mesh, furniture_dir, write_ply)
 
-TAKE = "data/mocap/cmu/sit/75_17.bvh"
+TAKE = "mocap/cmu/sit/75_17.bvh"  # through the data registry
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -38,9 +38,9 @@ def sit():
 
 @pytest.fixture(scope="module")
 def take():
-    from rtchannel.scene.assets import REPO_ROOT
+    from thirdparty import data_path
 
-    return Motion.from_file(REPO_ROOT / TAKE, activity="sit")
+    return Motion.from_file(data_path(TAKE), activity="sit")
 
 
 def _signed_volume(v, f):

@@ -120,9 +120,9 @@ def test_bvh_fuzz(bvh_lines, tmp_path_factory, edits):
 def c3d_base(tmp_path_factory):
     import ezc3d
 
-    from rtchannel.scene.assets import mocap_dir
+    from thirdparty import data_path
 
-    src = ezc3d.c3d(str(mocap_dir() / "stand" / "77_02.c3d"))
+    src = ezc3d.c3d(str(data_path("mocap/cmu/stand/77_02.c3d")))
     p = tmp_path_factory.mktemp("c3d") / "base.c3d"
     c = ezc3d.c3d()
     c["parameters"]["POINT"]["RATE"]["value"] = [60.0]

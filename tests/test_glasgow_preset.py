@@ -10,16 +10,19 @@ from rtchannel.dataset.items import build_motion
 from rtchannel.dataset.plan import expand, load_plan
 from rtchannel.motion.compose import back_and_forth, fit_clip
 from rtchannel.radar import RadarConfig
+from thirdparty import data_path, registered
 
 # Largest per-frame step [m] of any joint at 60 fps: 0.12 m = 7.2 m/s. The fastest body part in walking, the
 # swinging foot, peaks at ~5 m/s (0.08 m per frame); a join without a turn (a pose switched to one facing
 # the other way) would move the hands and feet by 0.3-1 m in one frame.
 MAX_STEP_M = 0.12
-MOCAP_WALKS = Path(__file__).resolve().parents[1] / "data" / "mocap" / "cmu" / "walk"
+GLASGOW_TAKES = registered("mocap/cmu/walk/*_iclone.bvh") + ["mocap/cmu/sit/75_17.bvh"]  # the preset's real takes
 
 
 @pytest.fixture(scope="module")
 def items():
+    for take in GLASGOW_TAKES:  # the preset fetches them through the data registry
+        data_path(take)
     return expand(load_plan("glasgow"))
 
 
@@ -44,8 +47,8 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     # real motion capture where it exists: walks and the two parts of 75_17
     files = {(it.activity, it.source) for it in items if it.motion["kind"] == "file"}
     assert {("sit", "75_17.bvh"), ("stand", "75_17.bvh")} <= files
-    # all ten CMU iClone walks shipped in data/mocap (14 motion sources per class, see the preset)
-    assert sorted(f for a, f in files if a == "walk") == sorted(p.name for p in MOCAP_WALKS.glob("*_iclone.bvh"))
+    # all ten CMU iClone walks of the data registry (14 motion sources per class, see the preset)
+    assert sorted(f for a, f in files if a == "walk") == sorted(Path(p).name for p in GLASGOW_TAKES if "/walk/" in p)
     assert sum(a == "walk" for a, _ in files) == 10
     # frontal falls only: generator seed = 0 (mod 3) is the forward fall
     assert all(it.motion["params"]["seed"] % 3 == 0 for it in items if it.activity == "fall")

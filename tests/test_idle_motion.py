@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from rtchannel.body.skeleton import Motion
 from rtchannel.motion.idle import GROUPS, IdleMotion, add_idle, band_noise
+from thirdparty import data_path
 
 LEGS = ("Hips", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "RightUpLeg", "RightLeg", "RightFoot",
         "RightToeBase")
@@ -109,6 +110,7 @@ def test_glasgow_items_carry_idle_motion_and_it_survives_the_mti():
     from rtchannel.dataset.items import build_motion, run_item
     from rtchannel.dataset.plan import expand, load_plan
 
+    data_path("mocap/cmu/sit/75_17.bvh")  # the preset's real takes come through the data registry
     items = expand(load_plan("glasgow"))
     assert all(it.motion["idle"]["elbow_deg"] > 0 for it in items)
     def last_move(motion: dict) -> float:
@@ -137,6 +139,7 @@ def test_glasgow_items_carry_idle_motion_and_it_survives_the_mti():
 def test_plan_draws_the_idle_factor_per_motion_and_rejects_one_out_of_range(tmp_path):
     from rtchannel.dataset.plan import expand, load_plan
 
+    data_path("mocap/cmu/sit/75_17.bvh")  # the preset's real takes come through the data registry
     plan = load_plan("glasgow").model_dump(mode="json")
     plan["motion"]["idle_scale"] = [0.0, 1.0]
     items = expand(type(load_plan("glasgow")).model_validate(plan))

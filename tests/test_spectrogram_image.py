@@ -22,9 +22,9 @@ from processing.synthesis import synthesise
 from processing.waveform import Waveform
 
 from conftest import moving_point_paths
+from thirdparty import GLASGOW_INDEX, GLASGOW_TEST_IMAGES, data_path
 
-DATA = Path(__file__).parent / "data" / "glasgow"
-REAL = sorted(DATA.glob("*.png"))
+REAL = GLASGOW_TEST_IMAGES  # registry paths; each test gets its file with data_path (skips without the data)
 SPAN, N = 40.0, 256
 DB_STEP = SPAN / N
 EPS = 1e-9
@@ -55,8 +55,9 @@ def test_matlab_jet_matches_matlab():
     assert len({tuple(c) for c in colormap_inverse("matlab_jet", 256).entries}) == 256
 
 
-@pytest.mark.parametrize("path", REAL, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", REAL, ids=lambda p: Path(p).stem)
 def test_real_images_use_exactly_matlab_jet(path):
+    path = data_path(path)
     # Every box pixel is an exact floor(255 jet(256)) colour except the tick marks: 4 interior time
     # ticks x 3 px at top and bottom (24) + 5 interior velocity ticks x 3 px left and right (30) = 54.
     rgb, _ = load_rgb(path)
@@ -89,7 +90,7 @@ def test_layout_validation():
 def test_all_360_glasgow_names_parse_and_agree_with_index():
     project = {"walk": "walk", "sit_down": "sit", "stand_up": "stand", "pick_up": "pick", "drink": "drink",
                "fall": "fall"}
-    with open(DATA / "index.csv", newline="") as f:
+    with open(GLASGOW_INDEX, newline="") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 360
     counts = {}
@@ -312,8 +313,9 @@ def test_writer_errors_name_the_file(tmp_path):
 
 
 # ---- real images ----------------------------------------------------------------------------------
-@pytest.mark.parametrize("path", REAL, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", REAL, ids=lambda p: Path(p).stem)
 def test_real_glasgow_images(path):
+    path = data_path(path)
     lab = parse_glasgow_name(path.name)
     r = read_glasgow_image(path)
     # walks are 10 s; so is the one sit-down 2P36A02R01 (detected from its frame, not its label)
@@ -341,7 +343,7 @@ def test_floor_option_on_a_real_fall():
     # This fall is over after ~2 s and, unlike 6P36A06R01, has no interference lines: the later columns
     # hold only floor pixels. "zero" makes them empty (p = 0, mean 0, invalid); "keep" gives every floor
     # pixel the same power, so those columns are uniform: p = 1/V.
-    path = DATA / "6P46A06R01.png"
+    path = data_path("realdata/glasgow848/1Dataset/6P46A06R01.png")
     zero, keep = read_glasgow_image(path), read_glasgow_image(path, floor="keep")
     empty = ~zero.signature.valid
     assert empty.sum() > 0.3 * empty.size and keep.signature.valid.all()

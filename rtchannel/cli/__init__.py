@@ -22,13 +22,15 @@ def build_parser() -> argparse.ArgumentParser:
     from rtchannel.cli.bench import add_bench
     from rtchannel.cli.classify import add_classifier_commands
     from rtchannel.cli.compare import add_compare
+    from rtchannel.cli.data import add_data
     from rtchannel.cli.dataset import add_dataset
     from rtchannel.cli.render import add_render
     from rtchannel.cli.simulate import add_simulate
 
     parser = OneLineParser(prog="rtchannel", description="Motion-capture driven MIMO radar simulator.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (add_simulate, add_render, add_dataset, add_classifier_commands, add_compare, add_bench):
+    for add in (add_simulate, add_render, add_dataset, add_classifier_commands, add_compare, add_bench,
+                add_data):
         add(sub)
     return parser
 

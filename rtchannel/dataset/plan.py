@@ -9,6 +9,7 @@ use the item seed.
 """
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import itertools
 import json
@@ -26,6 +27,8 @@ from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
 from rtchannel.radar import Link, direction_angles
 from rtchannel.body.scatterers import SCATTERER_NAMES
+from rtchannel.data_registry import DATA_PREFIX
+from rtchannel.errors import ConfigError
 from rtchannel.dataset.plan_yaml import check_backend_options, count_items, read_plan_yaml
 
 MOTION_SUFFIXES = (".bvh", ".c3d")
@@ -384,12 +387,12 @@ def load_plan(spec: str | Path, **overrides) -> Plan:
     plan = Plan.model_validate(data)
     sources = []
     for s in plan.motion.sources:
-        if s.files is not None:
+        if s.files is not None and not s.files.startswith(DATA_PREFIX):
             f = Path(s.files).expanduser()
             s = s.model_copy(update={"files": str((f if f.is_absolute() else path.parent / f).resolve())})
         sources.append(s)
     plan = plan.model_copy(update={"motion": plan.motion.model_copy(update={"sources": sources})})
-    count_items(plan, lambda s: len(_motion_files(s)), f"plan {path}")  # counted, not expanded
+    count_items(plan, lambda s: len(_motion_files(s, fetch=False)), f"plan {path}")  # counted, not expanded
     return plan
 
 
@@ -433,7 +436,11 @@ def _draw(value, rng: np.random.Generator):
     return value
 
 
-def _motion_files(src: Source) -> list[Path]:
+def _motion_files(src: Source, fetch: bool = True) -> list[Path]:
+    """The motion files of a `files` source, sorted. ``data:PREFIX`` names registered third-party files
+    (fetched through `rtchannel.data_registry`; with `fetch` False only counted, nothing downloaded)."""
+    if src.files.startswith(DATA_PREFIX):
+        return _registry_files(src, fetch)
     root = Path(src.files)
     if root.is_file():
         return [root]
@@ -443,6 +450,36 @@ def _motion_files(src: Source) -> list[Path]:
     if not files:
         raise FileNotFoundError(f"no .bvh/.c3d files match {src.pattern!r} in {root}")
     return files
+
+
+def _registry_files(src: Source, fetch: bool) -> list[Path]:
+    from rtchannel import data_registry
+
+    prefix = src.files[len(DATA_PREFIX):].rstrip("/")
+    pattern = src.pattern[3:] if src.pattern.startswith("**/") else src.pattern  # '**/*' = anything below
+    chosen = []
+    for e in data_registry.entries(prefix):
+        rel = e.path[len(prefix) + 1:] if e.path != prefix else Path(e.path).name
+        if Path(e.path).suffix.lower() in MOTION_SUFFIXES and (e.path == prefix or fnmatch.fnmatch(rel, pattern)):
+            chosen.append(e.path)
+    if not chosen:
+        raise ConfigError(f"motion source {src.files}: no registered .bvh/.c3d file matches {src.pattern!r} "
+                          "(rtchannel data list shows them)")
+    if not fetch:
+        return [Path(p) for p in chosen]
+    return [data_registry.fetch(p) for p in chosen]
+
+
+def _labelled_files(src: Source) -> list[tuple[Path, str]]:
+    """(local path, label) of each file of a `files` source; the label is the path below the folder or
+    registry prefix the source names (the file name for a single file)."""
+    files = _motion_files(src)
+    if src.files.startswith(DATA_PREFIX):
+        prefix = src.files[len(DATA_PREFIX):].rstrip("/")
+        regs = _registry_files(src, fetch=False)
+        return [(f, r.name if r.as_posix() == prefix else r.as_posix()[len(prefix) + 1:]) for f, r in zip(files, regs)]
+    root = Path(src.files)
+    return [(f, f.name if root.is_file() else str(f.relative_to(root))) for f in files]
 
 
 def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
@@ -466,13 +503,11 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
                 base = {"kind": "procedural", "activity": act, "params": {**params, "seed": gen_seed}}
                 out.append((f"{act}-{si:02d}-{v:04d}", act, f"procedural:{act}#{si}.{v}", f"procedural:{act}", base))
         else:
-            root = Path(src.files)
-            for v, f in enumerate(_motion_files(src)):
+            for v, (f, rel) in enumerate(_labelled_files(src)):
                 act = f.parent.name if src.activity == "from_folder" else src.activity
                 if act not in ACTIVITIES:
                     raise ValueError(f"motion file {f}: folder name {act!r} is not an activity "
                                      f"({', '.join(ACTIVITIES)})")
-                rel = f.name if root.is_file() else str(f.relative_to(root))
                 base = {"kind": "file", "activity": act, "path": str(f), "options": dict(src.options)}
                 if src.trim is not None:
                     base["trim"] = list(src.trim)
@@ -484,7 +519,7 @@ def expand(plan: Plan) -> list[WorkItem]:
     """All work items of `plan`, sorted by item_id (deterministic). ConfigError first if the plan would
     have no items or more than `plan_yaml.MAX_PLAN_ITEMS`, or a backend option is not a single value."""
     check_backend_options(plan.backend_options, f"plan {plan.name!r}")  # a Plan built in code skips load_plan
-    count_items(plan, lambda s: len(_motion_files(s)), f"plan {plan.name!r}")
+    count_items(plan, lambda s: len(_motion_files(s, fetch=False)), f"plan {plan.name!r}")
     ml, ph, sg = plan.motion, plan.physical, plan.signal
     motion_axes = list(itertools.product(ml.heights, ml.time_scales, ml.mirror, ml.headings_deg, ml.starts))
     phys_axes = list(itertools.product(ph.rotations(), ph.waveforms, ph.link_sets))

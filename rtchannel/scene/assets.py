@@ -16,7 +16,3 @@ def scenes_dir() -> Path:
     """Folder holding the Mitsuba scene files."""
     return REPO_ROOT / "scenes"
 
-
-def mocap_dir() -> Path:
-    """Folder holding the CMU motion-capture takes shipped with the project (see its README)."""
-    return REPO_ROOT / "data" / "mocap" / "cmu"
