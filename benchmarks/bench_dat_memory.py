@@ -18,7 +18,7 @@ from pathlib import Path
 
 CHILD = r"""
 import json, sys, time
-from processing.ancortek import read_dat
+from processing.realdata.ancortek import read_dat
 def rss_kb():
     for line in open("/proc/self/status"):
         if line.startswith("VmRSS:"):

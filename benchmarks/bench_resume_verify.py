@@ -18,7 +18,7 @@ def main() -> None:
     ap.add_argument("--items", type=int, default=300)
     ap.add_argument("--out", type=Path, default=Path("/tmp/verify_bench"))
     args = ap.parse_args()
-    from processing.dataset_store import SHARDS, scan_shards
+    from processing.io.dataset_store import SHARDS, scan_shards
     from rtchannel.dataset.plan import load_plan
     from rtchannel.dataset.runner import run_plan
 

@@ -20,7 +20,7 @@ def main(argv=None) -> None:
     ap.add_argument("--duration", type=float, default=0.5, help="walk length [s], traced at 10 fps")
     args = ap.parse_args(argv)
 
-    from processing.antenna import Isotropic
+    from processing.radar.antenna import Isotropic
     from rtchannel.analysis.chain_bench import exact_duration_walk
     from rtchannel.backends.sionna_rt import trace_frames
     from rtchannel.body.avatar import load_avatar

@@ -5,7 +5,7 @@ two monostatic seed radars, 10k body, room, default settings, made once by `rtch
 (cached with --paths FILE); the `points` backend likewise. Timed: only `rtchannel.pipeline.process_paths`
 (synthesis, receiver noise, DSP) with the default radar (receiver noise on), per route:
   full      keep_iq=True: IQ [chirps, samples] synthesised, `receive`d, DSP from the IQ;
-  consumed  keep_iq=False: the DSP's projection synthesised directly (`processing.synthesis_projection`).
+  consumed  keep_iq=False: the DSP's projection synthesised directly (`processing.synthesis.projection`).
 With --compare TREE the same measurements run on another source tree (e.g. the code before this change,
 `git archive <commit> | tar -x -C /tmp/before`), in a worker process per tree, interleaved repeat by repeat
 so that every tree sees the same machine state. Reports medians [s] of wall time (and of process CPU time)

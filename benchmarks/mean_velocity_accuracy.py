@@ -17,7 +17,7 @@ import argparse
 
 import numpy as np
 
-from processing.waveform import C0
+from processing.radar.waveform import C0
 from rtchannel.backends.points import point_paths
 from rtchannel.motion.procedural import generate
 from rtchannel.pipeline import simulate

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from processing.spectrogram_image import glasgow_layout
-from processing.spectrogram_image_writer import render_image
+from processing.realdata.spectrogram_image import glasgow_layout
+from processing.realdata.spectrogram_image_writer import render_image
 from rtchannel import Motion, simulate
 from rtchannel.motion.compose import back_and_forth, fit_clip
 from rtchannel.radar import Radar

@@ -4,7 +4,7 @@ The writer fills a temporary sibling with a unique name (pid + random), the file
 over the target with `os.replace`, and the folder is fsynced, so a reader (or a resumed run) sees the
 old file or the complete new one, never a torn one, even after a power cut; a failed write (full disk,
 killed process, exception) leaves no partial target and removes its temporary file. Temporary files
-end in ``.tmp`` so `processing.dataset_store.remove_orphans` can clean up after a killed writer.
+end in ``.tmp`` so `processing.io.dataset_store.remove_orphans` can clean up after a killed writer.
 """
 from __future__ import annotations
 

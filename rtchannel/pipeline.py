@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from processing.dsp import Signature, signatures, signatures_from_projection
-from processing.dsp_config import check_recording
+from processing.dsp.signatures import Signature, signatures, signatures_from_projection
+from processing.dsp.config import check_recording
 from processing.pathset import PathSet
 from rtchannel.backends import MESH_BACKENDS, backend_function
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.radar import RadarConfig
 
 
@@ -51,7 +51,7 @@ class SimulationResult:
     def save(self, path: str | Path, seed: int | None = None) -> Path:
         """Write `signature.h5` (DESIGN.md layout, atomically) with the parameters that made it; the raw IQ
         is stored for links that kept it. Returns the path."""
-        from processing.signature_file import write_signature_file
+        from processing.io.signature_file import write_signature_file
 
         cfg = self.config
         radar = cfg.get("radar", {})
@@ -68,7 +68,7 @@ class SimulationResult:
 
     def plot(self, out_dir: str | Path, title: str | None = None) -> list[Path]:
         """PNG figures (p(v,t), mean velocity, range-time) into `out_dir`; returns their paths."""
-        from processing.plots import plot_all
+        from processing.plots.signatures import plot_all
 
         if title is None:
             c = self.config
@@ -86,23 +86,24 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
                   oversample: int | None = None, iq_transform=None, noise_seed: int = 0) -> dict[str, LinkResult]:
     """Synthesise and compute signatures for every link's path set.
 
-    With `radar.receiver` set, the IQ is what the ADC records (`processing.receiver.receive`): scaled to
+    With `radar.receiver` set, the IQ is what the ADC records (`processing.radar.receiver.receive`): scaled to
     sqrt(W) by the transmit power and chain gain, plus the receiver's thermal noise (and leakage, if
     configured), seeded by (`noise_seed`, link index) and keyed by chirp index, so chunking never
     changes it. Without a receiver the IQ stays in units of the transmit power (noiseless).
     Raw IQ is formed only when it is needed (`keep_iq`, `iq_transform`): otherwise the DSP's fast-time
     projection (range profiles of the used bins, coherent range sum) is synthesised straight from the paths
-    with the same noise projected onto it (`processing.synthesis_projection`), which gives the same
+    with the same noise projected onto it (`processing.synthesis.projection`), which gives the same
     signatures up to float rounding (tests/test_synthesis_projection.py).
     `progress` is an optional callable receiving the number of chirps done after each chunk;
-    `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.iter_synthesis`);
+    `synthesis`/`oversample` choose the synthesiser (`processing.synthesis.exact.iter_synthesis`);
     `iq_transform(link name, iq [C, N]) -> iq` changes the raw IQ before DSP (signal-layer augmentation),
     and the kept IQ is the transformed one.
     """
     from threadpoolctl import threadpool_limits
 
-    from processing.receiver import noise_power_per_sample, received_iq
-    from processing.synthesis_projection import synthesise_projection
+    from processing.radar.receiver import noise_power_per_sample
+    from processing.synthesis.exact import received_iq
+    from processing.synthesis.projection import synthesise_projection
 
     timing = {} if timing is None else timing
     out = {}
@@ -163,7 +164,7 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
             path. The points backend has no scene (a warning is issued if one other than free space is given).
         keep_iq: keep the raw IQ [chirps, samples] of every link (memory: 8 bytes per sample).
         progress: optional callable receiving the number of chirps done after each chunk.
-        synthesis: "auto", "exact" or "grid" (see `processing.synthesis.iter_synthesis`).
+        synthesis: "auto", "exact" or "grid" (see `processing.synthesis.exact.iter_synthesis`).
         iq_transform: optional `f(link name, iq) -> iq` applied before the DSP (e.g. signal augmentation).
         noise_seed: seed of the receiver noise (default: the motion's seed, else 0).
         **backend_options: the backend's options (e.g. `lod="5k"`, `walls=False` for facets).

@@ -5,9 +5,9 @@ rx apart) or, by listing several links that share a transmitter, multistatic. An
 Positions are in the project frame (z up, metres). The seed's y-up positions (x, y, z) are (x, -z, y)
 here: Radar 1 at (3, 0, 1.1) m and Radar 2 at (0, -3, 1.1) m.
 
-Antennas (`processing.antenna`): every link's transmitter and receiver has a pattern, the link's own
+Antennas (`processing.radar.antenna`): every link's transmitter and receiver has a pattern, the link's own
 (`tx_antenna`, `rx_antenna`) or the radar's `antenna`. The default is the seed's kit (Ancortek SDR-KIT
-2400T2R4, `processing.receiver.ANCORTEK_2400T2R4`): 30-degree horns looking horizontally at the room
+2400T2R4, `processing.radar.receiver.ANCORTEK_2400T2R4`): 30-degree horns looking horizontally at the room
 centre (0, 0, 1.1) m, and its receiver (transmit power, noise figure), so signatures carry the kit's
 absolute thermal noise. `receiver=None` gives noiseless IQ; `antenna=Isotropic()` the unit-gain
 antennas of the backends' native scale.
@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from processing.antenna import AntennaPattern
-from processing.dsp import DSPConfig
-from processing.dsp_config import GLASGOW_DSP
-from processing.receiver import ANCORTEK_2400T2R4, ANCORTEK_580AD, ReceiverConfig
-from processing.waveform import Waveform
+from processing.radar.antenna import AntennaPattern
+from processing.dsp.signatures import DSPConfig
+from processing.dsp.config import GLASGOW_DSP
+from processing.radar.receiver import ANCORTEK_2400T2R4, ANCORTEK_580AD, ReceiverConfig
+from processing.radar.waveform import Waveform
 
 MONOSTATIC_TOLERANCE_M = 0.1
 MAX_COORDINATE_M = 1e4  # antenna coordinates beyond 10 km are a unit mistake, not a room  # tx and rx closer than this share one position (co-located horns)
@@ -185,7 +185,7 @@ class RadarConfig(BaseModel):
     def link_gain(self, link: Link, tx_targets: np.ndarray, rx_targets: np.ndarray | None = None) -> np.ndarray:
         """Antenna amplitude factor sqrt(G_tx G_rx) [...] of paths leaving the transmitter towards
         `tx_targets` [..., 3] (m) and reaching the receiver from `rx_targets` (default the same points)."""
-        from processing.antenna import link_gain
+        from processing.radar.antenna import link_gain
 
         tx_ant, rx_ant = self.antennas(link)
         if tx_ant.kind == "isotropic" and rx_ant.kind == "isotropic":

@@ -19,8 +19,8 @@ import argparse
 
 import numpy as np
 
-from processing.dataset_store import DatasetReader
-from processing.real_images import load_real_images, parse_people
+from processing.io.dataset_store import DatasetReader
+from processing.realdata.real_images import load_real_images, parse_people
 
 ACTIVITIES = ("walk", "sit", "stand", "pick", "fall")
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from processing.pathset import PathSet
-from processing.waveform import C0
+from processing.radar.waveform import C0
 
 
 def moving_point_paths(ranges: np.ndarray, times: np.ndarray, gain: complex = 1.0) -> PathSet:

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from processing.ancortek import AncortekFormatError, read_dat, write_dat
-from processing.dsp import signatures
-from processing.receiver import noise_power_per_sample
+from processing.realdata.ancortek import AncortekFormatError, read_dat, write_dat
+from processing.dsp.signatures import signatures
+from processing.radar.receiver import noise_power_per_sample
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import RadarConfig
 from rtchannel.pipeline import simulate

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from processing.antenna import (GaussianBeam, Isotropic, YagiBeam, directivity_dbi, gain, kraus_gain_dbi,
+from processing.radar.antenna import (GaussianBeam, Isotropic, YagiBeam, directivity_dbi, gain, kraus_gain_dbi,
                                 link_gain, local_directions, local_power_gain, parse_antenna, peak_gain_dbi,
                                 sionna_orientation)
-from processing.dsp import signatures
+from processing.dsp.signatures import signatures
 from processing.pathset import PathSet
-from processing.synthesis import synthesise
-from processing.waveform import C0, Waveform
+from processing.synthesis.exact import synthesise
+from processing.radar.waveform import C0, Waveform
 
 POS = np.array([3.0, 0.0, 1.1])
 CENTRE = (0.0, 0.0, 1.1)
@@ -201,8 +201,8 @@ def test_tabulated_directivities_are_the_computed_ones():
     # The table only saves start-up time: each entry must be what the integral gives. 1e-12 relative allows
     # the last-bit differences of numpy's vectorised exp/arctan2 between CPUs summed over the grid (each
     # term ~1e-16 relative, 2e6 terms in pairwise sums: error growth ~log2(2e6) ulp), nothing more.
-    from processing import antenna
-    from processing.receiver import ANCORTEK_2400T2R4
+    from processing.radar import antenna
+    from processing.radar.receiver import ANCORTEK_2400T2R4
 
     assert antenna._directivity_params(ANCORTEK_2400T2R4.antenna) in antenna._TABULATED
     for (kind, params), tabulated in antenna._TABULATED.items():

@@ -17,10 +17,10 @@ ALLOWED = [
     ("processing/atomic.py", ""),  # the helper itself
     ("rtchannel/cli/common.py", "open(probe"),  # the free-space probe of check_output (deleted at once)
     ("rtchannel/dataset/runner.py", '".lock"'),  # the advisory lock file, never read
-    ("processing/dataset_store.py", 'open(path, "a")'),  # index.jsonl append: a torn last line is skipped on read
+    ("processing/io/dataset_store.py", 'open(path, "a")'),  # index.jsonl append: a torn last line is skipped on read
     ("rtchannel/motion/c3d.py", "np.savez(sys.argv[2]"),  # the ezc3d child's hand-over file in a private folder
-    ("processing/plots.py", "savefig_atomic"),
-    ("processing/plots_classifier.py", "savefig_atomic"),
+    ("processing/plots/signatures.py", "savefig_atomic"),
+    ("processing/plots/classifier.py", "savefig_atomic"),
 ]
 
 

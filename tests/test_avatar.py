@@ -5,7 +5,7 @@ import trimesh
 
 from rtchannel.body.avatar import LOD_TARGETS, LODS, build_lod, load_avatar
 from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
-from rtchannel.body.skeleton import REST_HEIGHT_M, Motion, avatar_rig
+from rtchannel.motion.pose import REST_HEIGHT_M, Motion, avatar_rig
 from rtchannel.body.skin_markers import skin_markers, skin_scatterer_trajectories
 
 
@@ -113,3 +113,16 @@ def test_render_smoke(tmp_path):
     assert img.shape == (72, 96, 3) and img.std() > 5
     # the body and the radar (red > blue, unlike the grey floor and the sky) are in view
     assert ((img[..., 0] - img[..., 2]) > 40).mean() > 0.005
+
+
+def test_sole_asset_file_is_the_avatars_soles():
+    """Retargeting reads the soles from meshes/avatar/soles.npz (the motion layer never loads the body):
+    the file must equal what the avatar gives now (regenerate with body.avatar.sole_asset if it changes)."""
+    from rtchannel.assets import avatar_dir
+    from rtchannel.body.avatar import sole_asset
+
+    fresh = sole_asset()
+    with np.load(avatar_dir() / "soles.npz") as f:
+        assert set(f.files) == set(fresh)
+        for k, v in fresh.items():
+            assert np.array_equal(f[k], v), k

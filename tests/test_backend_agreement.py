@@ -14,7 +14,7 @@ phase; measured 0.118 and 0.056 m/s). The power per frame does not depend on the
 import numpy as np
 import pytest
 
-from processing.antenna import Isotropic
+from processing.radar.antenna import Isotropic
 from rtchannel.backends.facets import facet_paths
 from rtchannel.backends.sionna_rt import sionna_paths
 from rtchannel.motion.procedural import generate

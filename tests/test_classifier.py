@@ -13,8 +13,8 @@ from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, Tr
                                    classification_report, confusion_matrix, load_checkpoint, preprocess,
                                    save_checkpoint, split_indices, train)
 from processing.classifier.metrics import plot_confusion, write_confusion_csv
-from processing.classifier.train import dataset_arrays
-from processing.dataset_store import ACTIVITIES, DatasetReader
+from processing.classifier.training import dataset_arrays
+from processing.io.dataset_store import ACTIVITIES, DatasetReader
 from rtchannel.cli import main
 
 PLAN = """
@@ -192,7 +192,7 @@ def test_cli_train_evaluate_crossval(tiny_dataset, tmp_path, capsys):
 
 def test_evaluate_recordings_from_dat(trained, tmp_path):
     """Simulated IQ written as .dat recordings, evaluated with one command, match the dataset's result."""
-    from processing.ancortek import write_dat
+    from processing.realdata.ancortek import write_dat
     from rtchannel.motion.procedural import generate
     from rtchannel.radar import RadarConfig, direction_angles
     from rtchannel.pipeline import simulate
@@ -323,7 +323,7 @@ def test_training_defaults_to_one_pinned_thread(monkeypatch):
     """Weights depended on the thread count (1 vs 2 threads differ after one step) and the old default
     picked it from the machine's load; the default is now pinned."""
     import importlib
-    tr = importlib.import_module("processing.classifier.train")  # the package's `train` is the function
+    tr = importlib.import_module("processing.classifier.training")  # the package's `train` is the function
     monkeypatch.setattr(tr, "auto_threads", lambda: 2)  # whatever the load says
     tr.setup_torch(0)
     assert torch.get_num_threads() == 1

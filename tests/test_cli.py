@@ -117,7 +117,7 @@ def test_compare_accepts_comma_separated_backends(tmp_path):
 def test_user_error_types_are_one_line_exit_2(tmp_path, capsys, shared_data):
     from rtchannel.errors import USER_ERRORS, ConfigError, SceneFileError
     from processing.errors import CheckpointError, DatasetFormatError, InputError, TrainingError
-    from processing.ancortek import AncortekFormatError
+    from processing.realdata.ancortek import AncortekFormatError
     from rtchannel.motion.errors import MotionImportError
 
     for cls in (ConfigError, SceneFileError, CheckpointError, DatasetFormatError, TrainingError, AncortekFormatError):

@@ -6,12 +6,12 @@ import h5py
 import numpy as np
 import pytest
 
-from processing.dataset_store import (ACTIVITIES, DatasetReader, checksum, read_jsonl, remove_orphans,
+from processing.io.dataset_store import (ACTIVITIES, DatasetReader, checksum, read_jsonl, remove_orphans,
                                       scan_shards, write_index, write_shard)
 from processing.errors import DatasetFormatError
-from processing.dsp import DSPConfig, signatures
-from processing.signal_augment import add_clutter, add_noise, signal_power, static_clutter
-from processing.waveform import Waveform
+from processing.dsp.signatures import DSPConfig, signatures
+from processing.synthesis.augment import add_clutter, add_noise, signal_power, static_clutter
+from processing.radar.waveform import Waveform
 
 
 def _record(item_id, activity, direction, rng, t=20):
@@ -200,7 +200,7 @@ def test_reading_a_corrupt_item_is_a_one_line_error(dataset):
 
 def test_empty_or_nan_signatures_are_item_failures(rng):
     """An item shorter than one DSP window (T = 0) or with a NaN is refused before it reaches a shard."""
-    from processing.dataset_store import check_record
+    from processing.io.dataset_store import check_record
     from processing.errors import InputError
     rec = _record("ok", "walk", 0.0, rng)
     assert check_record(rec) is rec

@@ -3,11 +3,11 @@ detection that keeps the mean velocity of noise-only windows at 0."""
 import numpy as np
 import pytest
 
-from processing.dsp import DSPConfig, noise_column_power, signatures
+from processing.dsp.signatures import DSPConfig, noise_column_power, signatures
 from processing.pathset import PathSet
-from processing.receiver import ReceiverConfig, noise_power_per_sample, receive
-from processing.synthesis import synthesise
-from processing.waveform import C0, Waveform
+from processing.radar.receiver import ReceiverConfig, noise_power_per_sample, receive
+from processing.synthesis.exact import synthesise
+from processing.radar.waveform import C0, Waveform
 
 WF = Waveform()
 RX = ReceiverConfig(transmit_power_dbm=19.0, noise_figure_db=12.0)

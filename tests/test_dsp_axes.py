@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from processing.dsp import DSPConfig, GLASGOW_DSP, project, signatures, signatures_from_projection
-from processing.fast_time import Projection, coherent_weights, path_response, range_weights
+from processing.dsp.signatures import DSPConfig, GLASGOW_DSP, project, signatures, signatures_from_projection
+from processing.dsp.fast_time import Projection, coherent_weights, path_response, range_weights
 from processing.pathset import PathSet
-from processing.synthesis import NyquistWarning, synthesise
-from processing.waveform import C0, Waveform
+from processing.synthesis.exact import NyquistWarning, synthesise
+from processing.radar.waveform import C0, Waveform
 
 from conftest import moving_point_paths
 

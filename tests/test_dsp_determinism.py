@@ -15,8 +15,8 @@ REPO = Path(__file__).resolve().parents[1]
 SCRIPT = r"""
 import hashlib
 import numpy as np
-from processing.dsp import DSPConfig, mean_velocity, signatures
-from processing.waveform import Waveform
+from processing.dsp.signatures import DSPConfig, mean_velocity, signatures
+from processing.radar.waveform import Waveform
 
 h = hashlib.sha256()
 rng = np.random.default_rng(1)

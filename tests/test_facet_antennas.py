@@ -2,20 +2,20 @@
 sqrt(G_tx(u_tx)) sqrt(G_rx(u_rx)), with u towards the facet or, through a wall, towards its mirror image.
 
 Patterns are checked against hand formulas (symmetric Gaussian beam G = G0 exp(-4 ln2 (psi / HPBW)^2) with
-an explicit peak gain and a floor far below the angles used), not against `processing.antenna`."""
+an explicit peak gain and a floor far below the angles used), not against `processing.radar.antenna`."""
 import math
 
 import numpy as np
 import pytest
 
-from processing.antenna import GaussianBeam, Isotropic
-from processing.waveform import C0
+from processing.radar.antenna import GaussianBeam, Isotropic
+from processing.radar.waveform import C0
 from rtchannel.backends.facets import LinkSpec, facet_paths, mesh_paths
 from rtchannel.backends.points import point_paths
 from rtchannel.backends.rcs import plate_mesh
 from rtchannel.backends.surface_scattering import SurfaceMaterial
 from rtchannel.backends.wall_images import PlanarWall
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import RTScene, get_scene

@@ -1,10 +1,10 @@
 """The facets backend's speed cuts are exact: direct Embree casts answer as Mitsuba's ray_test, partial BVH
 batches with unused cells answer as full ones, index-reading gain kernels equal the gathered route, the
-compiled antenna pattern equals `processing.antenna.gain`, and whole path sets are unchanged."""
+compiled antenna pattern equals `processing.radar.antenna.gain`, and whole path sets are unchanged."""
 import numpy as np
 import pytest
 
-from processing import antenna
+from processing.radar import antenna
 from rtchannel.backends import embree, visibility
 from rtchannel.backends.facet_kernels import antenna_amplitudes
 from rtchannel.backends.facets import facet_paths
@@ -39,7 +39,7 @@ LOD = "2k"
 
 def _walk(n_frames=6, first=45):
     m = generate("walk", duration=1.0, start=(-1.0, 0.3), fps=60.0)
-    from rtchannel.body.skeleton import Motion
+    from rtchannel.motion.pose import Motion
 
     sl = slice(first, first + n_frames)
     return Motion(m.rig, m.fps, m.rotations[sl], m.positions[sl])

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from processing.receiver import noise_power_per_sample
-from processing.waveform import C0
+from processing.radar.receiver import noise_power_per_sample
+from processing.radar.waveform import C0
 from rtchannel.body.avatar import load_avatar
 from rtchannel.backends.facets import LinkSpec, facet_paths, mesh_paths, trace_frame_indices
 from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases
@@ -11,7 +11,7 @@ from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import RadarPlacementError, RTScene, get_scene
 from rtchannel.pipeline import process_paths
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.body.skinning import skin_vertices
 
 LOD = "2k"

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from processing.antenna import Isotropic
+from processing.radar.antenna import Isotropic
 from processing.pathset import PathSet
-from processing.signature_file import read_signature_file
-from processing.waveform import C0
+from processing.io.signature_file import read_signature_file
+from processing.radar.waveform import C0
 from rtchannel import Motion, Radar, Scene, simulate
-from rtchannel.scene.chair_fit import (chair_for, chair_penetration, procedural_seat_height, scene_for,
+from rtchannel.scene.chair_fit import (chair_for, chair_penetration, procedural_seat_height,
                                        seated_frames)
 from rtchannel.scene.furniture import (BACK_TOP_ABOVE_SEAT_M, LEG_SECTION_M, SEAT_DEPTH_M, SEAT_THICKNESS_M,
                                        SEAT_WIDTH_M, Furniture, chair_boxes, chair_mesh, furniture_dir, write_ply)
@@ -206,12 +206,12 @@ def test_a_walk_has_no_seat_and_the_auto_chair_only_comes_for_sit_and_stand(sit)
     walk = Motion.procedural("walk", duration=2.0)
     with pytest.raises(ValueError, match="no seated phase"):
         chair_for(walk)
-    assert scene_for(walk, None, "auto") is None
-    assert scene_for(sit, None, "none") is None
-    auto = scene_for(sit, None, "auto")
+    assert Scene.for_motion(walk, None, "auto") is None
+    assert Scene.for_motion(sit, None, "none") is None
+    auto = Scene.for_motion(sit, None, "auto")
     assert auto.source == "room" and [f.label for f in auto.furniture] == ["chair"]
     with pytest.raises(ValueError, match="no seated phase"):
-        scene_for(replace(walk, activity="sit"), "room", "auto")
+        Scene.for_motion(replace(walk, activity="sit"), "room", "auto")
 
 
 def test_cli_chair_option(sit):

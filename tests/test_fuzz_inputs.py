@@ -204,7 +204,7 @@ sample_text = st.one_of(
 @given(head=st.lists(number_text, min_size=0, max_size=5), samples=st.lists(sample_text, max_size=40),
        good_head=st.booleans(), n_channels=st.integers(-1, 3), partial=st.booleans())
 def test_dat_fuzz(tmp_path_factory, head, samples, good_head, n_channels, partial):
-    from processing.ancortek import read_dat
+    from processing.realdata.ancortek import read_dat
 
     header = ["24.125", "0.5", "8", "250"] if good_head else head
     p = tmp_path_factory.mktemp("d") / "rec.dat"
@@ -295,7 +295,7 @@ def test_scene_xml_fuzz(scene_folder, text):
 @pytest.fixture(scope="module")
 def checkpoint_blob(tmp_path_factory):
     from processing.classifier import Classifier, ModelConfig, PreprocessConfig, build_model, save_checkpoint
-    from processing.dataset_store import ACTIVITIES
+    from processing.io.dataset_store import ACTIVITIES
 
     cfg = ModelConfig(input_size=(16, 16), padding="same", channels=(4, 4), mlp_hidden=8)
     torch.manual_seed(0)
@@ -346,7 +346,7 @@ def test_checkpoint_fuzz(checkpoint_blob, tmp_path_factory, section, key, value,
 def small_dataset(tmp_path_factory):
     from test_dataset_store import _record
 
-    from processing.dataset_store import scan_shards, write_index, write_shard
+    from processing.io.dataset_store import scan_shards, write_index, write_shard
 
     root = tmp_path_factory.mktemp("ds")
     rng = np.random.default_rng(0)
@@ -366,7 +366,7 @@ json_value = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(), st.
                                             st.sampled_from(['{"item_id": "x"}', '{"item_id": 3}', "{", "[]", ""])),
        field=st.sampled_from(["item_id", "shard", "links", "label", "sha256"]), value=json_value)
 def test_dataset_index_fuzz(small_dataset, tmp_path_factory, pos, line, field, value):
-    from processing.dataset_store import DatasetReader
+    from processing.io.dataset_store import DatasetReader
 
     root = tmp_path_factory.mktemp("copy") / "ds"
     shutil.copytree(small_dataset, root)

@@ -5,7 +5,7 @@ case is added as xfail with a reason naming its owner (``run=False`` if it would
 same as in `test_fuzz_inputs.py`: one line on stderr naming the file/field, exit status 2, before any
 long work; a valid input gives finite output.
 
-Owners: `processing/waveform.py` and `processing/dsp.py` (bounds), `rtchannel/dataset/plan.py`,
+Owners: `processing/radar/waveform.py` and `processing/dsp/signatures.py` (bounds), `rtchannel/dataset/plan.py`,
 `rtchannel/radar.py`, the CLI commands' own argument checks (`rtchannel/cli/*.py`).
 """
 import math

@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.cli import main
 from rtchannel.dataset.items import build_motion
 from rtchannel.dataset.plan import expand, load_plan
@@ -131,9 +131,9 @@ def test_cli_radar_preset_errors_are_one_line(tmp_path, capsys):
 def test_through_image_keeps_what_the_image_shows_and_drops_what_is_below_its_span():
     """Columns 10 dB below the strongest one keep their peak velocity (within one image row, 12 m/s / 317 =
     0.038 m/s, plus half a signature bin); columns 50 dB below it are under the 40 dB span: empty."""
-    from processing.dsp import Signature
-    from processing.spectrogram_image import glasgow_layout
-    from processing.spectrogram_image_writer import through_image
+    from processing.dsp.signatures import Signature
+    from processing.realdata.spectrogram_image import glasgow_layout
+    from processing.realdata.spectrogram_image_writer import through_image
 
     v = np.linspace(-6, 6, 373)
     t = np.linspace(0.1, 4.9, 200)

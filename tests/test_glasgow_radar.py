@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from processing.dsp import signatures
-from processing.synthesis import synthesise
-from processing.waveform import C0
+from processing.dsp.signatures import signatures
+from processing.synthesis.exact import synthesise
+from processing.radar.waveform import C0
 from rtchannel.errors import ConfigError
 from rtchannel.radar import GLASGOW_SIM_BAND_M, Radar, RadarConfig
 

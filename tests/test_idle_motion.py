@@ -6,7 +6,7 @@ import pytest
 from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
 
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.motion.idle import GROUPS, IdleMotion, add_idle, band_noise
 from thirdparty import data_path
 

@@ -4,7 +4,7 @@ import csv
 import numpy as np
 import pytest
 
-from processing.metrics import mean_velocity_rmse, normalised_dtw, pvt_tv_distance
+from processing.metrics.distances import mean_velocity_rmse, normalised_dtw, pvt_tv_distance
 from rtchannel.cli import main
 
 
@@ -66,7 +66,7 @@ def test_pareto_front():
 
 
 def test_earth_mover_distance_paper_values():
-    from processing.metrics import pvt_wasserstein
+    from processing.metrics.distances import pvt_wasserstein
 
     v = np.arange(8) * 0.25                       # 0.25 m/s bins
     p = np.zeros((8, 2))
@@ -114,7 +114,7 @@ def test_dtw_is_finite_where_pruning_failed():
     most their Euclidean distance (the diagonal is one warping path)."""
     from pathlib import Path
 
-    from processing.metrics import normalised_dtw
+    from processing.metrics.distances import normalised_dtw
 
     b = np.load(Path(__file__).parent / "data" / "dtw_pruning_case.npy")
     a = np.zeros_like(b)  # the pruned DTW of exactly this pair is inf

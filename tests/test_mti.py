@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from processing.dsp import DSPConfig, project, signatures
-from processing.mti import MA_CUTOFF_PRODUCT, cutoff_hz, moving_average_length, mti_filter, settling_time_s
+from processing.dsp.signatures import DSPConfig, project, signatures
+from processing.dsp.mti import MA_CUTOFF_PRODUCT, cutoff_hz, moving_average_length, mti_filter, settling_time_s
 from processing.pathset import PathSet
-from processing.synthesis import synthesise
-from processing.waveform import C0, Waveform
+from processing.synthesis.exact import synthesise
+from processing.radar.waveform import C0, Waveform
 
 PRF = 2000.0
 F0 = 24.125e9

@@ -3,14 +3,14 @@ import numpy as np
 import pytest
 from scipy.signal import find_peaks
 
-from processing.antenna import Isotropic, peak_gain_dbi
-from processing.mti import cutoff_hz, moving_average_length
-from processing.waveform import C0
+from processing.radar.antenna import Isotropic, peak_gain_dbi
+from processing.dsp.mti import cutoff_hz, moving_average_length
+from processing.radar.waveform import C0
 from rtchannel.backends.points import BODY_RCS_M2, point_paths
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.pipeline import simulate
-from rtchannel.body.skeleton import JOINT_INDEX
+from rtchannel.motion.pose import JOINT_INDEX
 
 
 def test_point_delays_are_exact_geometry():

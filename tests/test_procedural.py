@@ -4,7 +4,7 @@ import pytest
 from pydantic import ValidationError
 
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams, generate
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 
 # Movement is "on" while some joint is > 1 cm away from the first (last) pose: stricter thresholds would
 # cut the slow tails of the minimum-jerk profiles, looser ones would count numerical noise.

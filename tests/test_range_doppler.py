@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.signal import butter, get_window, lfilter, spectrogram
 
-from processing.dsp import GLASGOW_DSP, DSPConfig, signatures
+from processing.dsp.signatures import GLASGOW_DSP, DSPConfig, signatures
 from processing.pathset import PathSet
-from processing.signature_file import read_signature_file, write_signature_file
-from processing.synthesis import NyquistWarning, synthesise
-from processing.waveform import C0, Waveform
+from processing.io.signature_file import read_signature_file, write_signature_file
+from processing.synthesis.exact import NyquistWarning, synthesise
+from processing.radar.waveform import C0, Waveform
 
 WF = Waveform()
 # the Glasgow dataset's radar: Ancortek, 5.8 GHz, 400 MHz, 1 ms sawtooth chirp, 128 samples (0.375 m bins)

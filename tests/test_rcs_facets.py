@@ -10,7 +10,7 @@ expectation over seeds (equal to the power sum); the PO checks use S = 0 (no dif
 import numpy as np
 import pytest
 
-from processing.waveform import C0
+from processing.radar.waveform import C0
 from rtchannel.backends.facets import LinkSpec, mesh_paths
 from rtchannel.backends.rcs import plate_mesh, sphere_mesh
 from rtchannel.backends.surface_scattering import (SurfaceMaterial, diffuse_plate_rcs, diffuse_sphere_rcs,

@@ -14,13 +14,13 @@ import torch
 from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, TrainConfig, build_model,
                                    load_checkpoint, preprocess, save_checkpoint, train)
 from processing.classifier.images import evaluate_images, image_inputs
-from processing.dataset_store import ACTIVITIES
-from processing.dsp import Signature
-from processing.metrics import normalised_dtw
-from processing.real_images import (NOISE_COLUMN_DB, RealImageError, load_real_images, parse_people,
+from processing.io.dataset_store import ACTIVITIES
+from processing.dsp.signatures import Signature
+from processing.metrics.distances import normalised_dtw
+from processing.realdata.real_images import (NOISE_COLUMN_DB, RealImageError, load_real_images, parse_people,
                                     read_real_image)
-from processing.signature_file import write_signature_file
-from processing.sim_real_table import (Curve, curves_from_images, dtw_activity_table, resample)
+from processing.io.signature_file import write_signature_file
+from processing.metrics.sim_real_table import (Curve, curves_from_images, dtw_activity_table, resample)
 from rtchannel.cli import main
 from thirdparty import GLASGOW_TEST_IMAGES, glasgow_folder_if_available, needs
 

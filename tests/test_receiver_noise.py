@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from processing.antenna import directivity_dbi
-from processing.dsp import DSPConfig, signatures
-from processing.fast_time import project
+from processing.radar.antenna import directivity_dbi
+from processing.dsp.signatures import DSPConfig, signatures
+from processing.dsp.fast_time import project
 
 
 def range_profiles(iq, wf, cfg=DSPConfig()):
@@ -15,11 +15,11 @@ def range_profiles(iq, wf, cfg=DSPConfig()):
     proj = project(iq, wf, cfg.model_copy(update={"max_range_m": 1e6}))
     return proj.profiles, proj.range
 from processing.pathset import PathSet
-from processing.receiver import (ANCORTEK_2400T2R4, ANCORTEK_580AD, K_BOLTZMANN, LeakageConfig, ReceiverConfig,
+from processing.radar.receiver import (ANCORTEK_2400T2R4, ANCORTEK_580AD, K_BOLTZMANN, LeakageConfig, ReceiverConfig,
                                  add_receiver_noise, noise_power_per_sample, processing_gain_db,
                                  range_bin_noise, receive, received_power_w, receiver_noise)
-from processing.synthesis import synthesise
-from processing.waveform import C0, Waveform
+from processing.synthesis.exact import synthesise
+from processing.radar.waveform import C0, Waveform
 
 WF = Waveform()  # seed radar: 128 samples per 0.5 ms chirp, fs = 256 kHz
 CFG = ReceiverConfig(transmit_power_dbm=10.0, noise_figure_db=10.0, chain_gain_db=20.0)

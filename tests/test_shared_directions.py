@@ -37,7 +37,7 @@ def test_shared_backend_equals_separate_runs(short_walk, backend, options):
 
 
 def test_union_radar_keeps_each_links_antennas_and_refuses_mixed_waveforms():
-    from processing.waveform import Waveform
+    from processing.radar.waveform import Waveform
 
     a, b = RadarConfig.seed(direction=1), RadarConfig.seed(direction=10)
     u = union_radar([a, b])
@@ -52,7 +52,7 @@ def test_dataset_items_of_one_motion_share_the_backend_and_equal_single_runs(tmp
     through `run_shared`, and every stored signature equals the item run alone (`run_item`)."""
     import yaml
 
-    from processing.dataset_store import DatasetReader
+    from processing.io.dataset_store import DatasetReader
     from rtchannel.dataset.items import run_item
     from rtchannel.dataset.plan import expand, load_plan
     from rtchannel.dataset.runner import make_batches, run_plan

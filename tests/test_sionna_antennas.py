@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from processing.antenna import GaussianBeam, Isotropic, YagiBeam, gain
+from processing.radar.antenna import GaussianBeam, Isotropic, YagiBeam, gain
 from rtchannel.backends.points import point_paths
 from rtchannel.backends.sionna_antennas import place_antennas
 from rtchannel.backends.sionna_rt import _tracer, sionna_paths, trace_frames

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from processing.waveform import C0
+from processing.radar.waveform import C0
 from rtchannel.body.avatar import load_avatar
 from rtchannel.backends.sionna_rt import path_geometry, place_antennas, trace_frames
 from rtchannel.body.meshgeom import closest_point_on_triangles

@@ -4,7 +4,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from rtchannel.body.avatar import LODS, load_avatar
-from rtchannel.body.skeleton import Motion, avatar_rig, forward_kinematics
+from rtchannel.motion.pose import Motion, avatar_rig, forward_kinematics
 from rtchannel.body.skinning import face_normals_and_areas, skin, skin_velocities, skin_vertices
 
 

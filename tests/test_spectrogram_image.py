@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from processing.colormaps import colormap_inverse, matlab_jet
-from processing.dsp import DSPConfig, signatures
-from processing.spectrogram_image import (ImageLayout, SpectrogramImageError, detect_glasgow_duration,
+from processing.realdata.colormaps import colormap_inverse, matlab_jet
+from processing.dsp.signatures import DSPConfig, signatures
+from processing.realdata.spectrogram_image import (ImageLayout, SpectrogramImageError, detect_glasgow_duration,
                                           glasgow_layout, load_rgb, parse_glasgow_name, read_glasgow_image,
                                           read_spectrogram_image, remap_matrix, cell_edges)
-from processing.spectrogram_image_writer import render_box, render_image, write_spectrogram_image
-from processing.synthesis import synthesise
-from processing.waveform import Waveform
+from processing.realdata.spectrogram_image_writer import render_box, render_image, write_spectrogram_image
+from processing.synthesis.exact import synthesise
+from processing.radar.waveform import Waveform
 
 from conftest import moving_point_paths
 from thirdparty import GLASGOW_INDEX, GLASGOW_TEST_IMAGES, data_path

@@ -4,10 +4,10 @@ import warnings
 import numpy as np
 import pytest
 
-from processing.dsp import DSPConfig, signatures
+from processing.dsp.signatures import DSPConfig, signatures
 from processing.pathset import PathSet
-from processing.synthesis import NyquistWarning, synthesise
-from processing.waveform import C0, Waveform
+from processing.synthesis.exact import NyquistWarning, synthesise
+from processing.radar.waveform import C0, Waveform
 from rtchannel.backends.points import link_delays
 
 from conftest import moving_point_paths
@@ -27,7 +27,7 @@ def _run(paths, cfg=DSPConfig(), wf=WF):
 
 def _check(sig, v, range_of_t):
     # Peak within half a velocity bin; eq. 8 mean within 0.05 m/s (what the rectangular window's
-    # leakage allows, see processing.dsp.mean_velocity); range peak within half a range bin.
+    # leakage allows, see processing.dsp.signatures.mean_velocity); range peak within half a range bin.
     peak_v = sig.velocity[sig.p_vt.argmax(axis=0)]
     assert np.all(np.abs(peak_v - v) <= DV / 2 + 1e-9), (v, peak_v)
     assert np.all(np.abs(sig.mean_velocity - v) < 0.05), (v, np.abs(sig.mean_velocity - v).max())

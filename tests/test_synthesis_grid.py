@@ -1,13 +1,13 @@
-"""The gridded many-path synthesiser (`processing.synthesis_grid`) against the exact per-path tone sum."""
+"""The gridded many-path synthesiser (`processing.synthesis.grid`) against the exact per-path tone sum."""
 import math
 
 import numpy as np
 import pytest
 
 from processing.pathset import PathSet
-from processing.synthesis import _fill_absent, iter_synthesis, synthesise
-from processing.synthesis_grid import prepare_frames, spread_kernel
-from processing.waveform import C0, Waveform
+from processing.synthesis.exact import _fill_absent, iter_synthesis, synthesise
+from processing.synthesis.grid import prepare_frames, spread_kernel
+from processing.radar.waveform import C0, Waveform
 
 WF = Waveform()
 
@@ -58,8 +58,8 @@ def test_kernel_bound_shrinks_with_width():
     for width in (2, 4, 8):
         k = spread_kernel(4, width)
         bounds[width] = k.error_bound
-        import processing.synthesis_grid as sg
-        from processing.synthesis import grid_pieces, chirp_times
+        import processing.synthesis.grid as sg
+        from processing.synthesis.exact import grid_pieces, chirp_times
 
         pieces = grid_pieces(paths)
         tt = chirp_times(paths.times[0], paths.times[-1], WF.pri_s)
@@ -117,7 +117,7 @@ def test_prepared_frames_fill_gaps_like_the_exact_route():
 
 
 def test_sincos_matches_libm():
-    from processing.synthesis_grid import _sincos
+    from processing.synthesis.grid import _sincos
     import numba
 
     @numba.njit

@@ -1,4 +1,4 @@
-"""Consumed-only synthesis (`processing.synthesis_projection`) against full-IQ synthesis + DSP.
+"""Consumed-only synthesis (`processing.synthesis.projection`) against full-IQ synthesis + DSP.
 
 Both routes share the synthesis (the same spread grid for many paths, the same exact tone sum for few) and the
 same keyed receiver noise, and the DSP is linear up to the clutter filter: they differ only by float rounding.
@@ -15,15 +15,15 @@ TV <= 1e-4 bounds it by 2e-4 x the largest velocity of the axis.
 import numpy as np
 import pytest
 
-from processing.dsp import DSPConfig
-from processing.fast_time import project, range_weights
-from processing.metrics import pvt_tv_distance
+from processing.dsp.signatures import DSPConfig
+from processing.dsp.fast_time import project, range_weights
+from processing.metrics.distances import pvt_tv_distance
 from processing.pathset import PathSet
-from processing.receiver import ANCORTEK_2400T2R4, LeakageConfig, receive
-from processing.synthesis import iter_synthesis, iter_weighted
-from processing.synthesis_grid import spread_kernel
-from processing.synthesis_projection import projection_weights, synthesise_projection
-from processing.waveform import C0, Waveform
+from processing.radar.receiver import ANCORTEK_2400T2R4, LeakageConfig, receive
+from processing.synthesis.exact import iter_synthesis, iter_weighted
+from processing.synthesis.grid import spread_kernel
+from processing.synthesis.projection import projection_weights, synthesise_projection
+from processing.radar.waveform import C0, Waveform
 from rtchannel.pipeline import process_paths
 from rtchannel.radar import Link, RadarConfig
 
@@ -85,7 +85,7 @@ def _assert_same_signatures(a, b, tv_max=TV_MAX):
 
 # paths at 0.97 v_max: the not-a-knot spline through gap-filled delays ("spline") may overshoot v_max by ~1 %
 # and warn; both routes synthesise the same paths
-@pytest.mark.filterwarnings("ignore::processing.synthesis.NyquistWarning")
+@pytest.mark.filterwarnings("ignore::processing.synthesis.exact.NyquistWarning")
 @pytest.mark.parametrize("noise", [True, False], ids=["noise", "noiseless"])
 @pytest.mark.parametrize("kind", ["hermite", "spline", "local"])
 @pytest.mark.parametrize("mode", list(MODES))
@@ -112,7 +112,7 @@ def test_few_paths_take_the_full_route_bitwise():
 
 @pytest.mark.parametrize("kind", ["hermite", "local"])
 @pytest.mark.parametrize("mode", ["seed-coherent", "glasgow"])
-@pytest.mark.filterwarnings("ignore::processing.synthesis.NyquistWarning")  # fading paths: see below
+@pytest.mark.filterwarnings("ignore::processing.synthesis.exact.NyquistWarning")  # fading paths: see below
 def test_projection_within_the_grid_bound_of_the_exact_synthesis(mode, kind):
     # Per path and sample the grid's relative error is at most kernel.error_bound (synthesis_grid), so a
     # projected value through weights w is off by at most error_bound x sum_m |w_m| x sum_p |a_p(t)|; the
@@ -134,7 +134,7 @@ def test_projection_within_the_grid_bound_of_the_exact_synthesis(mode, kind):
     # and the signatures agree with the exact synthesis as well (noiseless)
     a = synthesise_projection(paths, wf, cfg, method="exact")[1]
     b = synthesise_projection(paths, wf, cfg, method="grid")[1]
-    from processing.dsp import signatures_from_projection
+    from processing.dsp.signatures import signatures_from_projection
     _assert_same_signatures(signatures_from_projection(a, cfg), signatures_from_projection(b, cfg))
 
 

@@ -4,8 +4,8 @@ removal did: the issue this DSP fixes)."""
 import numpy as np
 import pytest
 
-from processing.dsp import DSPConfig, signatures
-from processing.synthesis import synthesise
+from processing.dsp.signatures import DSPConfig, signatures
+from processing.synthesis.exact import synthesise
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.pipeline import backend_paths, simulate

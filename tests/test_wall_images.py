@@ -3,8 +3,8 @@ double bounce (both antennas mirrored), the coarse image LOD."""
 import numpy as np
 import pytest
 
-from processing.antenna import Isotropic
-from processing.waveform import C0
+from processing.radar.antenna import Isotropic
+from processing.radar.waveform import C0
 from rtchannel.backends.facet_assemble import double_kind, kind_walls
 from rtchannel.backends.facets import facet_paths
 from rtchannel.backends.surface_scattering import fresnel, slab_reflection
@@ -12,7 +12,7 @@ from rtchannel.backends.wall_images import PlanarWall, in_convex_polygon, mirror
 from rtchannel.motion.procedural import generate
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import get_scene
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.body.avatar import load_avatar
 from rtchannel.body.skinning import skin_vertices
 

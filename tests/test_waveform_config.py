@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from processing.waveform import C0, Waveform
+from processing.radar.waveform import C0, Waveform
 from rtchannel.radar import Link, RadarConfig, direction_angles
 
 

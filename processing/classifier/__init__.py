@@ -2,7 +2,8 @@
 from processing.classifier.metrics import Report, classification_report, confusion_matrix
 from processing.classifier.model import ModelConfig, MultiPerspectiveDCNN, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess, preprocess_links
-from processing.classifier.train import (Classifier, TrainConfig, TrainResult, load_checkpoint, save_checkpoint,
+from processing.classifier.predictor import Classifier
+from processing.classifier.training import (TrainConfig, TrainResult, load_checkpoint, save_checkpoint,
                                          split_indices, train)
 
 __all__ = ["Classifier", "ModelConfig", "MultiPerspectiveDCNN", "PreprocessConfig", "Report", "TrainConfig",

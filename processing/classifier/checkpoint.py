@@ -19,6 +19,7 @@ from pydantic import ValidationError
 
 from processing.atomic import atomic_path
 from processing.classifier.model import ModelConfig, build_model
+from processing.classifier.predictor import Classifier
 from processing.classifier.preprocess import PreprocessConfig
 from processing.errors import CheckpointError, one_line
 
@@ -99,8 +100,6 @@ def load_checkpoint(path: str | Path):
         FileNotFoundError: no such file.
         CheckpointError: anything else wrong with it (one line naming the file and the field).
     """
-    from processing.classifier.train import Classifier
-
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"model file not found: {path}")

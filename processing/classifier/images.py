@@ -1,6 +1,6 @@
 """Sim-to-real evaluation of a trained classifier on real spectrogram images (one radar per image).
 
-Each image's p(v,t) (read on its pixel grid by `processing.real_images`) goes through the model's own
+Each image's p(v,t) (read on its pixel grid by `processing.realdata.real_images`) goes through the model's own
 `PreprocessConfig` exactly as a simulated signature does (`Classifier.inputs` -> `preprocess_links`):
 same velocity grid and crop, same time handling, same dB scale; the noise-aware `valid` mask plays the
 role of the simulated signature's `valid`. The image is the model's only link, so the model must have
@@ -26,7 +26,7 @@ import numpy as np
 
 from processing.atomic import write_text_atomic
 from processing.classifier.metrics import Report, classification_report, plot_confusion, write_confusion_csv
-from processing.real_images import RealImage, RealImageError
+from processing.realdata.real_images import RealImage, RealImageError
 
 
 def image_inputs(clf, images: list[RealImage]) -> np.ndarray:

@@ -131,6 +131,6 @@ def plot_confusion(report: Report, path: str | Path, title: str | None = None) -
     ax.set_aspect("equal")
     ax.set_title(title or f"accuracy {100 * report.accuracy:.2f} %, macro F1 {100 * report.macro_f1:.2f} % "
                  f"(n = {report.n})", fontsize=10)
-    from processing.plots_classifier import save_figure
+    from processing.plots.classifier import save_figure
 
     return save_figure(fig, path)

@@ -1,6 +1,6 @@
 """Fixed-size classifier input from variable-size velocity distributions p(v,t).
 
-A p(v,t) from `processing.dsp.signatures` has V velocity bins (64 for the seed's 64-chirp window) over
+A p(v,t) from `processing.dsp.signatures.signatures` has V velocity bins (64 for the seed's 64-chirp window) over
 [-v_max, v_max) and T time bins that depend on the recording length (62.5 bins/s at the seed's 0.5 ms
 PRI and hop of 32 chirps; activities last 2-6 s). The network needs one size, and a model trained on
 one radar should accept another radar's recordings, so the input is built on *physical* axes:

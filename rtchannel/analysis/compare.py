@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from processing.atomic import savefig_atomic, write_text_atomic
-from processing.metrics import normalised_dtw, signature_distances
+from processing.metrics.distances import normalised_dtw, signature_distances
 from rtchannel.motion.procedural import ACTIVITIES, generate
 from rtchannel.radar import RadarConfig
 from rtchannel.pipeline import simulate
@@ -39,7 +39,7 @@ def run_backends(backends: list[str], activities: list[str], radar: RadarConfig,
 def dtw_table(sigs_a: dict, sigs_b: dict) -> tuple[list[str], list[str], np.ndarray]:
     """Normalised DTW between mean velocities of activity i (rows, backend A) and activity j (columns,
     backend B), averaged over the links both share: the layout of the seed's Table I
-    (`processing.metrics.normalised_dtw`, scaled by the pair's peak speed)."""
+    (`processing.metrics.distances.normalised_dtw`, scaled by the pair's peak speed)."""
     rows, cols = list(sigs_a), list(sigs_b)
     table = np.zeros((len(rows), len(cols)))
     for i, a in enumerate(rows):

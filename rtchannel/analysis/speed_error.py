@@ -4,7 +4,7 @@ against a converged reference.
 For each setting: wall time per simulated second (median over repeats, whole chain: backend, synthesis,
 DSP, all links) and, against the reference, the mean earth-mover (Wasserstein-1, m/s) and total-variation
 distances of p(v,t) per time bin, the mean-velocity RMSE [m/s] and the normalised DTW
-(`processing.metrics`), averaged over links. The Pareto front is drawn on the earth-mover distance:
+(`processing.metrics.distances`), averaged over links. The Pareto front is drawn on the earth-mover distance:
 TV saturates when Monte-Carlo floors or one-bin shifts differ, EMD measures how far the energy moved.
 Writes a CSV, a Markdown table and a PNG of error against time with the Pareto front.
 
@@ -33,7 +33,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from processing.atomic import savefig_atomic, write_text_atomic
-from processing.metrics import signature_distances
+from processing.metrics.distances import signature_distances
 from rtchannel.radar import RadarConfig
 
 

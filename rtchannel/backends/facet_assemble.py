@@ -11,7 +11,7 @@ import numba
 import numpy as np
 
 from processing.pathset import PathSet
-from processing.waveform import C0
+from processing.radar.waveform import C0
 from rtchannel.backends.surface_scattering import facet_gains_indexed, wall_factor
 from rtchannel.backends.wall_images import mirror
 
@@ -125,7 +125,7 @@ def antenna_targets(kinds_sizes, cent, walls) -> tuple[np.ndarray, np.ndarray]:
     receiver, for paths grouped in runs of (kind, count) over centroids `cent` [N, 3]: the centroid itself,
     or for an antenna mirrored in wall w the centroid's mirror image in w. (The reflection point lies on
     the segment antenna -> mirrored centroid, so the antenna sees the path in that direction; see
-    `processing.antenna`.)"""
+    `processing.radar.antenna`.)"""
     at_tx, at_rx = cent, cent  # shared until an image kind needs its own copy
     at = 0
     for kind, k in kinds_sizes:

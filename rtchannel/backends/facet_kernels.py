@@ -197,11 +197,11 @@ _PARALLEL_MIN = 20_000
 
 
 def antenna_amplitudes(spec, position, targets) -> np.ndarray:
-    """`processing.antenna.gain` (amplitude sqrt(G) [N] of the antenna `spec` at `position` [3] (m) towards
+    """`processing.radar.antenna.gain` (amplitude sqrt(G) [N] of the antenna `spec` at `position` [3] (m) towards
     `targets` [N, 3] (m)) in one compiled pass for Gaussian and Yagi patterns, without the numpy
     temporaries; the same formulas, equal to it within float64 rounding (tests/test_facet_speed.py).
     Other kinds go to the numpy reference."""
-    from processing import antenna
+    from processing.radar import antenna
 
     targets = np.ascontiguousarray(targets, float)
     if spec.kind not in ("gaussian", "yagi"):
@@ -222,7 +222,7 @@ def antenna_amplitudes(spec, position, targets) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _pattern_serial(targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out):
-    """sqrt(g0 max(pattern, floor)) per target: `processing.antenna._normalised` of the local direction
+    """sqrt(g0 max(pattern, floor)) per target: `processing.radar.antenna._normalised` of the local direction
     (d @ frame) / |d| (boresight for a target at the antenna); pa, pe are the Gaussian's HPBW^-2 [rad^-2]
     or the Yagi's cos exponents, back the Yagi's back-lobe level."""
     for e in range(targets.shape[0]):

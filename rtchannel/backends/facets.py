@@ -26,7 +26,7 @@ power, so leaving it out underestimates the body (mean walk RCS about -8 instead
 each reflection point.
 
 Antennas (`LinkSpec.tx_antenna`, `rx_antenna`; `facet_paths` takes the radar's, `RadarConfig.antennas`):
-every path is multiplied by sqrt(G_tx(u_tx)) sqrt(G_rx(u_rx)) (`processing.antenna.gain`), u the direction
+every path is multiplied by sqrt(G_tx(u_tx)) sqrt(G_rx(u_rx)) (`processing.radar.antenna.gain`), u the direction
 from the antenna towards the facet centroid, or, for an antenna mirrored in wall w, towards the centroid's
 mirror image in w (the reflection point lies on that line); the merged monostatic twins get their own
 factors. Like the rest of the gain it is evaluated at the traced frames and interpolated in between (the
@@ -80,7 +80,7 @@ from rtchannel.body.skinning import face_normals_and_areas
 
 @dataclass(frozen=True)
 class LinkSpec:
-    """A radar link by name, antenna positions [3] (m) and antenna patterns (`processing.antenna` specs;
+    """A radar link by name, antenna positions [3] (m) and antenna patterns (`processing.radar.antenna` specs;
     None: isotropic, the backends' native unit-gain scale)."""
 
     name: str
@@ -291,7 +291,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     min_relative_gain_db=None`` is the full-accuracy one (every frame traced, every path kept).
 
     Args:
-        motion: the pose sequence (`rtchannel.body.skeleton.Motion`); the avatar is scaled to its rig height.
+        motion: the pose sequence (`rtchannel.motion.pose.Motion`); the avatar is scaled to its rig height.
         radar: `rtchannel.radar.RadarConfig` (links and carrier).
         scene: "room", "free_space", a Mitsuba XML path, or an `RTScene` whose body is this LOD.
         lod: avatar level of detail ("full", "10k", "5k", "2k").

@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from processing.pathset import PathSet
-from processing.waveform import C0
+from processing.radar.waveform import C0
 from rtchannel.radar import RadarConfig
 from rtchannel.body.scatterers import PointScatterers, seed_scatterers
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.errors import RadarPlacementError
 
 

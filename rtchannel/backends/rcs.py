@@ -30,9 +30,9 @@ from typing import Callable
 
 import numpy as np
 
-from processing.antenna import Isotropic
+from processing.radar.antenna import Isotropic
 from processing.pathset import PathSet
-from processing.waveform import C0
+from processing.radar.waveform import C0
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import RTScene, SkinMaterial
 

@@ -2,7 +2,7 @@
 
 Sionna RT evaluates an antenna pattern inside its field calculator: a registered pattern factory returns
 callables ``(theta, phi) -> (C_theta, C_phi)`` in the device's local frame (x' boresight, z' up), and each
-Transmitter/Receiver turns that frame by its own (yaw, pitch, roll). `processing.antenna` uses the same
+Transmitter/Receiver turns that frame by its own (yaw, pitch, roll). `processing.radar.antenna` uses the same
 local frame, so a project pattern becomes a Sionna pattern by evaluating `local_power_gain` with Dr.Jit
 operations: vertical polarisation (Sionna's "V", slant angle 0, so C_phi = 0 exactly) with
 C_theta = sqrt(G). Then |a|^2 carries G_tx(u_tx) G_rx(u_rx) on top of the unit-gain scale, with u_tx the
@@ -23,7 +23,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from processing.antenna import local_power_gain, sionna_orientation
+from processing.radar.antenna import local_power_gain, sionna_orientation
 
 _REGISTERED: set[str] = set()
 

@@ -29,9 +29,9 @@ import numpy as np
 from scipy import sparse
 
 from processing.atomic import atomic_path
-from rtchannel.scene.assets import avatar_dir
+from rtchannel.assets import avatar_dir
 from rtchannel.body.meshgeom import closest_points_on_mesh
-from rtchannel.body.skeleton import JOINT_INDEX, JOINT_NAMES, SOLE_OFFSET_M, Rig, avatar_rig
+from rtchannel.motion.pose import JOINT_INDEX, JOINT_NAMES, SOLE_OFFSET_M, Rig, avatar_rig
 
 LOD_TARGETS = {"10k": 10_000, "5k": 5_000, "2k": 2_000}
 LODS = ("full", *LOD_TARGETS)
@@ -219,4 +219,20 @@ def _lod_avatar(lod: str) -> Avatar:
     return av
 
 
-__all__ = ["Avatar", "LODS", "LOD_TARGETS", "load_avatar", "build_lod", "lod_path"]
+SOLE_MAX_Z_M = 0.02  # rest-pose vertices this close to the floor are the soles
+
+
+def sole_asset() -> dict[str, np.ndarray]:
+    """The full mesh's sole vertices as retargeting needs them (`rtchannel.motion.soles`): rest positions
+    [P, 3] (m, at the avatar's height), dense skinning weights [P, J], side [P] (+1 left, -1 right) and the
+    avatar height [m]. Retargeting reads them from `meshes/avatar/soles.npz` so that the motion layer
+    never loads the body mesh; a test checks that file against this function."""
+    av = load_avatar("full")
+    low = np.flatnonzero(av.vertices[:, 2] < SOLE_MAX_Z_M)
+    side = np.sign(av.vertices[low, 1])
+    keep = side != 0
+    return {"rest": av.vertices[low[keep]], "weights": av.dense_weights()[low[keep]], "side": side[keep],
+            "height": np.float64(av.height)}
+
+
+__all__ = ["Avatar", "LODS", "LOD_TARGETS", "load_avatar", "build_lod", "lod_path", "sole_asset"]

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rtchannel.body.skeleton import Rig
+from rtchannel.motion.pose import Rig
 
 # name, joint it moves with, bone whose head->tail segment locates it, fraction along that bone, area
 _TABLE: tuple[tuple[str, str, str, float, float], ...] = (

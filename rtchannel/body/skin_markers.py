@@ -19,7 +19,7 @@ from scipy import sparse
 from rtchannel.body.avatar import Avatar, load_avatar
 from rtchannel.body.meshgeom import closest_points_on_mesh, ray_first_hit
 from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.body.skinning import blend_points, matrix_derivatives
 
 _FRONT, _UP = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)

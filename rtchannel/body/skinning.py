@@ -23,10 +23,8 @@ from scipy.interpolate import CubicSpline
 
 from rtchannel.body.avatar import Avatar
 from rtchannel.body.meshgeom import vertex_face_incidence
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion, blend_points  # noqa: F401 - LBS lives with the pose
 
-# Frames per block: keeps the blended [V, frames, 12] matrices near 50 MB for the full mesh.
-_BLOCK_ELEMENTS = 6_000_000
 DEGENERATE_AREA_M2 = 1e-12  # below this a triangle's normal is not trusted (1 um^2)
 
 
@@ -69,32 +67,6 @@ def matrix_derivatives(motion: Motion, method: str = "spline") -> np.ndarray:
     if method == "central":
         return np.gradient(a, 1.0 / motion.fps, axis=0, edge_order=2)
     raise ValueError(f"unknown velocity method {method!r} (use 'spline' or 'central')")
-
-
-def blend_points(weights: sparse.spmatrix, rest: np.ndarray, mats: np.ndarray) -> np.ndarray:
-    """Apply blended affine transforms to points.
-
-    Args:
-        weights: skinning weights [P, J] (sparse or dense).
-        rest: rest positions [P, 3] (m).
-        mats: per-frame joint transforms [F, J, 3, 4] (skinning matrices or their derivatives).
-
-    Returns:
-        [F, P, 3]: sum_j w_pj mats[f, j] [rest_p; 1].
-    """
-    f, j = mats.shape[:2]
-    p = rest.shape[0]
-    w = sparse.csr_matrix(weights)
-    xh = np.concatenate([rest, np.ones((p, 1))], axis=1)
-    out = np.empty((f, p, 3))
-    block = max(1, _BLOCK_ELEMENTS // max(1, 12 * p))
-    for s in range(0, f, block):
-        m = mats[s:s + block]
-        nb = m.shape[0]
-        # [J, nb*12] so one sparse product blends every frame of the block at once.
-        blended = (w @ m.transpose(1, 0, 2, 3).reshape(j, nb * 12)).reshape(p, nb, 3, 4)
-        out[s:s + nb] = np.einsum("pfab,pb->fpa", blended, xh, optimize=True)
-    return out
 
 
 def skin_vertices(avatar: Avatar, motion: Motion, frames=None) -> np.ndarray:

@@ -74,7 +74,7 @@ def select(reader, conds) -> list[int]:
 
 def open_spec(spec: str):
     """(DatasetReader, selected indices) of a dataset spec; UserError if missing or empty."""
-    from processing.dataset_store import DatasetReader
+    from processing.io.dataset_store import DatasetReader
 
     path, conds = parse_spec(spec)
     try:
@@ -125,7 +125,7 @@ def _add_preprocess_model_args(p) -> None:
 
 def _configs(args):
     from processing.classifier import ModelConfig, PreprocessConfig, TrainConfig
-    from processing.dataset_store import ACTIVITIES
+    from processing.io.dataset_store import ACTIVITIES
 
     links = [s.strip() for s in args.links.split(",") if s.strip()]
     pre = PreprocessConfig(n_velocity=args.size[0], n_time=args.size[1], v_range_mps=args.v_range or None,
@@ -144,9 +144,9 @@ def train_spec(spec: str, args, out: Path, log=print):
     """Train on a dataset spec; writes the checkpoint, curves and validation confusion next to `out`."""
     from processing.classifier import Classifier, classification_report, save_checkpoint, train
     from processing.classifier.metrics import plot_confusion, write_confusion_csv
-    from processing.classifier.train import dataset_arrays
-    from processing.dataset_store import ACTIVITIES
-    from processing.plots_classifier import plot_history
+    from processing.classifier.training import dataset_arrays
+    from processing.io.dataset_store import ACTIVITIES
+    from processing.plots.classifier import plot_history
 
     links, pre, mcfg, tcfg = _configs(args)
     reader, idx = open_spec(spec)
@@ -223,7 +223,7 @@ def evaluate_arrays(clf, x, y, out_dir: Path | None, title: str, names=None, log
 
 
 def _recording_inputs(clf, args):
-    from processing.ancortek import label_from_name, recording_samples
+    from processing.realdata.ancortek import label_from_name, recording_samples
 
     src = args.recordings
     if src.is_dir():
@@ -257,7 +257,7 @@ def _recording_inputs(clf, args):
 
 def _evaluate_images(clf, args, out: Path) -> int:
     from processing.classifier.images import evaluate_images, write_image_evaluation
-    from processing.real_images import load_real_images, parse_people, read_labels_csv
+    from processing.realdata.real_images import load_real_images, parse_people, read_labels_csv
 
     labels = read_labels_csv(args.labels) if args.labels is not None else None
     people = parse_people(args.people)
@@ -274,7 +274,7 @@ def _evaluate_images(clf, args, out: Path) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    from processing.classifier.train import dataset_arrays
+    from processing.classifier.training import dataset_arrays
 
     clf = _load_model(args.model)
     out = args.out or args.model.with_name(args.model.stem + "_eval")
@@ -322,7 +322,7 @@ def _crossval_plan(args) -> list[dict]:
 
 
 def cmd_crossval(args) -> int:
-    from processing.classifier.train import dataset_arrays
+    from processing.classifier.training import dataset_arrays
 
     plan = _crossval_plan(args)
     out = args.out if args.out.suffix else args.out.with_suffix(".csv")

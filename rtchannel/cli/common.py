@@ -168,7 +168,7 @@ def build_motion(args):
     """The motion the user asked for: a motion-capture file or a procedural activity."""
     import numpy as np
 
-    from rtchannel.body.skeleton import Motion
+    from rtchannel.motion.pose import Motion
 
     if args.motion_file is not None:
         if not args.motion_file.is_file():

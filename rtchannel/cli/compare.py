@@ -19,8 +19,8 @@ def _sim_paths(items) -> list[Path]:
 
 def cmd_compare_real(args) -> int:
     """Table I with real recordings: simulated curves (rows) against real images (columns)."""
-    from processing.real_images import load_real_images, parse_people, read_labels_csv
-    from processing.sim_real_table import (curves_from_dataset, curves_from_images, curves_from_signature_files,
+    from processing.realdata.real_images import load_real_images, parse_people, read_labels_csv
+    from processing.metrics.sim_real_table import (curves_from_dataset, curves_from_images, curves_from_signature_files,
                                            dtw_activity_table, write_dtw_table)
     from rtchannel.cli.common import UserError, check_output
 

@@ -31,7 +31,7 @@ def cmd_dataset(args) -> int:
     from rtchannel.cli.common import UserError, check_output, validation_line
 
     if args.info is not None:
-        from processing.dataset_store import DatasetReader
+        from processing.io.dataset_store import DatasetReader
 
         try:
             print(DatasetReader(args.info).summary())

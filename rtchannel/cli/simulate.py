@@ -35,12 +35,12 @@ def add_chair_arg(p) -> None:
 
 
 def scene_with_chair(scene, motion, chair: str):
-    """`scene` plus the chair `--chair` asks for (`rtchannel.scene.chair_fit.scene_for`); a one-line user
+    """`scene` plus the chair `--chair` asks for (`Scene.for_motion`); a one-line user
     error when a sit/stand motion has no seated phase."""
-    from rtchannel.scene.chair_fit import scene_for
+    from rtchannel.scene.spec import Scene
 
     try:
-        return scene_for(motion, scene, chair)
+        return Scene.for_motion(motion, scene, chair)
     except ValueError as e:
         raise UserError(f"--chair {chair}: {e}; use --chair none") from None
 
@@ -72,7 +72,7 @@ def cmd_simulate(args) -> int:
     from rtchannel.pipeline import simulate
     from rtchannel.scene.spec import Scene
 
-    from processing.dsp_config import check_recording
+    from processing.dsp.config import check_recording
 
     options = backend_options(args)
     radar, angle = load_radar(args)

@@ -1,6 +1,6 @@
 """Dataset generation: augmentation plans (`plan`), one work item (`items`), Dask orchestration (`runner`).
 
-Storage and reading live in the lower layer: `processing.dataset_store` (`DatasetReader`).
+Storage and reading live in the lower layer: `processing.io.dataset_store` (`DatasetReader`).
 """
 from rtchannel.dataset.plan import Plan, WorkItem, expand, load_plan
 from rtchannel.dataset.runner import RunSummary, run_plan

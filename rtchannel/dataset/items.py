@@ -17,12 +17,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from processing.dataset_store import ACTIVITIES, signature_arrays
-from processing.signal_augment import add_clutter, add_noise, signal_power
+from processing.io.dataset_store import ACTIVITIES, signature_arrays
+from processing.synthesis.augment import add_clutter, add_noise, signal_power
 from rtchannel.dataset.plan import WorkItem
 from rtchannel.radar import RadarConfig
 from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
-from rtchannel.body.skeleton import Motion, avatar_rig
+from rtchannel.motion.pose import Motion, avatar_rig
 
 _CACHE_SIZE = 8
 _MOTIONS: OrderedDict[str, Motion] = OrderedDict()
@@ -110,9 +110,9 @@ class _Job:
         if item.backend == "points":
             self.options["gains"] = self.gains
         elif item.chair != "none":  # mesh backends: furniture (the points backend is free space)
-            from rtchannel.scene.chair_fit import scene_for
+            from rtchannel.scene.spec import Scene
 
-            self.options["scene"] = scene_for(self.motion, self.options.get("scene"), item.chair)
+            self.options["scene"] = Scene.for_motion(self.motion, self.options.get("scene"), item.chair)
         self.signal_layer = item.snr_db is not None or item.clutter is not None
         self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
         self.clutter_info = {}
@@ -148,8 +148,8 @@ class _Job:
                     iq = (iq * np.float32(overall)).astype(np.complex64)
                 sig = replace(sig, power=sig.power * overall ** 2)  # normalised distributions are unchanged
             if item.image_layout == "glasgow":  # the display chain of the real images (40 dB span, 8-bit colour)
-                from processing.spectrogram_image import glasgow_layout
-                from processing.spectrogram_image_writer import through_image
+                from processing.realdata.spectrogram_image import glasgow_layout
+                from processing.realdata.spectrogram_image_writer import through_image
 
                 sig = through_image(sig, glasgow_layout(float(item.motion["clip_s"])))
             arrays = signature_arrays(sig)

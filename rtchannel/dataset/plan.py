@@ -20,9 +20,9 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from processing.dsp import DSPConfig
+from processing.dsp.signatures import DSPConfig
 from processing.errors import one_line
-from processing.waveform import Waveform
+from processing.radar.waveform import Waveform
 from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
 from rtchannel.radar import Link, direction_angles
@@ -329,7 +329,7 @@ class Storage(_Model):
     keep_iq: bool = Field(False, description="also store raw IQ (complex64; large)")
     image_layout: Literal["glasgow"] | None = Field(
         None, description="store each signature as the real images show it: drawn in this layout and read "
-        "back (processing.spectrogram_image_writer.through_image); glasgow needs clip_s of 5 or 10 s")
+        "back (processing.realdata.spectrogram_image_writer.through_image); glasgow needs clip_s of 5 or 10 s")
 
 
 class Plan(_Model):
@@ -340,7 +340,7 @@ class Plan(_Model):
     backend: str = Field("points", min_length=1)
     backend_options: dict[str, Any] = Field(default_factory=dict)
     chair: Literal["auto", "none"] = Field("none", description="mesh backends: auto puts a chair under sit and "
-                                           "stand motions (rtchannel.scene.chair_fit.scene_for), as --chair auto")
+                                           "stand motions (Scene.for_motion), as --chair auto")
     motion: MotionLayer
     physical: PhysicalLayer = Field(default_factory=PhysicalLayer)
     signal: SignalLayer = Field(default_factory=SignalLayer)

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from processing.atomic import write_text_atomic
-from processing.dataset_store import (ERRORS, PLAN, SHARDS, append_jsonl, check_record, read_shard_entries,
+from processing.io.dataset_store import (ERRORS, PLAN, SHARDS, append_jsonl, check_record, read_shard_entries,
                                       remove_orphans, scan_shards, write_index, write_shard)
 from processing.errors import DatasetFormatError, InputError
 from rtchannel.dataset.plan import Plan, WorkItem, expand

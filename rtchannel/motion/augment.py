@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 
 
 def _draw(value, rng, name):

@@ -21,7 +21,7 @@ from rtchannel.motion.errors import MotionImportError
 from rtchannel.motion.rigs import cc_neutral
 from rtchannel.motion.source import (FILE_FPS_RANGE, MAX_ANGLE_DEG, MAX_DURATION_S, MAX_SOURCE_FRAMES,
                                      SourceMotion, check_extent, guess_units, guess_up, parse_units, up_rotation)
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 
 END = "/End"  # suffix naming a joint's End Site point
 MAX_BVH_BYTES = 1 << 30  # text; ~10 bytes per value, so MAX_VALUES of text is ~0.5 GB

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 
 ROOT = 0  # the hips: the rig's root joint
 

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 
 # joint groups of the avatar rig (CMU naming) whose local rotations are perturbed
 GROUPS = {

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 from scipy.special import logsumexp
 
-from rtchannel.body.skeleton import Rig, forward_kinematics
+from rtchannel.motion.pose import Rig, forward_kinematics
 
 DEG = np.pi / 180.0
 NOMINAL_HEIGHT_M = 1.75  # body height the literature numbers below are quoted for [m]

@@ -10,7 +10,7 @@ from rtchannel.errors import ConfigError
 from rtchannel.motion.errors import MotionImportError
 from rtchannel.motion.retarget import drop_leading_discontinuities, retarget
 from rtchannel.motion.source import check_fps, check_resampled_frames, parse_units, up_rotation
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 
 FORMATS = (".bvh", ".c3d")
 MAX_GAP_LIMIT_S = 10.0  # filling a longer marker gap by interpolation invents the motion

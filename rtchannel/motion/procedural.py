@@ -1,6 +1,6 @@
 """Procedural joint trajectories for five activities: fall, walk, stand (sit-to-stand), sit, pick.
 
-Every generator drives the 31-joint avatar rig (`rtchannel.body.skeleton`) with smooth joint-angle profiles
+Every generator drives the 31-joint avatar rig (`rtchannel.motion.pose`) with smooth joint-angle profiles
 and returns a `Motion`: quiet standing (sitting for ``stand``) for `pad_before`, the activity, and a quiet
 end pose for `pad_after`. The motion is built facing +x from the origin, then turned by `heading_deg`
 about the vertical and moved to `start`. Lengths scale with ``height / 1.75 m``.
@@ -34,7 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from rtchannel.motion import kinematics as km
 from rtchannel.motion.kinematics import DEG, NOMINAL_HEIGHT_M, keyframes, step
-from rtchannel.body.skeleton import Motion, Rig, avatar_rig
+from rtchannel.motion.pose import Motion, Rig, avatar_rig
 from rtchannel.motion.activities import ACTIVITIES
 
 _DEFAULT_DURATION_S = {"fall": 1.5, "sit": 2.3, "stand": 1.9, "pick": 2.8}

@@ -16,11 +16,14 @@ found from the planted feet, and a per-frame vertical correction keeps planted f
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from rtchannel.motion.rigs import JOINT_MAPS, POSTURE
 from rtchannel.motion.source import SourceMotion
-from rtchannel.body.skeleton import Motion, Rig, avatar_rig
+from rtchannel.assets import avatar_dir
+from rtchannel.motion.pose import Motion, Rig, avatar_rig, blend_points
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -188,18 +191,22 @@ def chain_positions(rig: Rig, rots: np.ndarray, root: np.ndarray) -> np.ndarray:
     return pos
 
 
+@lru_cache(maxsize=1)
+def _soles() -> dict[str, np.ndarray]:
+    # the avatar's sole vertices, precomputed by rtchannel.body.avatar.sole_asset (a test pins the file to
+    # it): retargeting needs only these, so the motion layer never loads the body mesh
+    with np.load(avatar_dir() / "soles.npz") as f:
+        return {k: f[k] for k in f.files}
+
+
 def sole_points(motion: Motion) -> dict[str, np.ndarray]:
     """Skinned sole vertices per foot, {"Left": [F, n, 3], "Right": [F, n, 3]} (m), full mesh."""
-    from rtchannel.body.avatar import load_avatar
-    from rtchannel.body.skinning import blend_points, rest_for_motion
-
-    av = load_avatar("full")
-    rest = rest_for_motion(av, motion)
-    low = rest[:, 2] < 0.02 * motion.rig.height / av.height
+    s = _soles()
+    rest = s["rest"] if abs(float(s["height"]) - motion.rig.height) < 1e-9 else s["rest"] * (
+        motion.rig.height / float(s["height"]))
     mats = motion.skinning_matrices()
-    return {side: blend_points(av.weights[idx], rest[idx], mats)
-            for side, idx in (("Left", np.flatnonzero(low & (rest[:, 1] > 0))),
-                              ("Right", np.flatnonzero(low & (rest[:, 1] < 0))))}
+    return {side: blend_points(s["weights"][idx], rest[idx], mats)
+            for side, idx in (("Left", np.flatnonzero(s["side"] > 0)), ("Right", np.flatnonzero(s["side"] < 0)))}
 
 
 def _planted_lowest(motion: Motion, max_speed: float = 0.3) -> tuple[np.ndarray, np.ndarray]:

@@ -12,6 +12,7 @@ import numpy as np
 
 from rtchannel.errors import ConfigError
 from rtchannel.motion.errors import MotionImportError
+from rtchannel.motion.pose import MAX_FRAMES, check_resampled_frames  # noqa: F401 - importers' frame guard
 
 # Limits of imported motion, each with its reason (docs/validation.md):
 MAX_COORD_M = 100.0  # capture volumes are < 100 m across: a point further out is corrupted data or wrong units
@@ -20,7 +21,6 @@ FILE_FPS_RANGE = (1.0, 10000.0)  # frame rates of motion files [Hz]: mocap syste
 FPS_RANGE = (10.0, 2000.0)  # frame rates a motion is resampled to [Hz] (as ProceduralParams.fps)
 MAX_DURATION_S = 3600.0  # one take; longer is a corrupted header (split long recordings)
 MAX_SOURCE_FRAMES = 200_000  # frames of one file (28 min at 120 Hz); memory ~ frames x joints x 100 B
-MAX_FRAMES = 200_000  # frames of a resampled motion: 31 joints x 96 B = 0.6 GB at the limit
 UNIT_RANGE_M = (1e-6, 1e3)  # metres per file unit accepted for units= (micrometre .. kilometre)
 
 # metres per file unit; "cmu" is the CMU/cgspeed BVH unit (1/0.45 inch)
@@ -92,14 +92,6 @@ def check_fps(fps, what: str = "fps") -> float:
     if not FPS_RANGE[0] <= f <= FPS_RANGE[1]:
         raise ConfigError(f"{what}: {f:g} Hz is outside {FPS_RANGE[0]:g}..{FPS_RANGE[1]:g} Hz")
     return f
-
-
-def check_resampled_frames(duration_s: float, fps: float, what: str = "fps") -> int:
-    """Frame count of a `duration_s` motion resampled to `fps`; `ConfigError` above `MAX_FRAMES`."""
-    n = math.floor(duration_s * fps + 1e-9) + 1
-    if n > MAX_FRAMES:
-        raise ConfigError(f"{what}: {duration_s:.1f} s at {fps:g} Hz gives {n} frames, more than {MAX_FRAMES}")
-    return n
 
 
 def check_extent(path, points: dict[str, np.ndarray], line_of_frame=None) -> None:

@@ -27,7 +27,7 @@ import warnings
 
 import numpy as np
 
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.scene.furniture import (BACK_TOP_ABOVE_SEAT_M, CHAIR, LEG_SECTION_M, SEAT_DEPTH_M,
                                        SEAT_THICKNESS_M, SEAT_WIDTH_M, Furniture, chair_boxes)
 
@@ -180,22 +180,5 @@ def wants_chair(motion: Motion) -> bool:
 CHAIR_MODES = ("auto", "none")
 
 
-def scene_for(motion: Motion, scene=None, chair: str = "auto"):
-    """The scene for `motion`: with ``chair="auto"`` and a sit/stand motion, `scene` (a `Scene`, a name or an
-    XML path; None = the room) plus the chair placed by `chair_for`; otherwise `scene` unchanged.
-
-    Raises:
-        ValueError: unknown `chair` mode, or a sit/stand motion without a seated phase.
-    """
-    from rtchannel.scene.spec import Scene
-
-    if chair not in CHAIR_MODES:
-        raise ValueError(f"chair must be one of {', '.join(CHAIR_MODES)}, got {chair!r}")
-    if chair == "none" or not wants_chair(motion):
-        return scene
-    base = scene if isinstance(scene, Scene) else Scene("room" if scene is None else scene)
-    return base.with_chair_for(motion)
-
-
-__all__ = ["CHAIR_MODES", "SEATED_ACTIVITIES", "chair_for", "chair_penetration", "procedural_seat_height", "scene_for",
+__all__ = ["CHAIR_MODES", "SEATED_ACTIVITIES", "chair_for", "chair_penetration", "procedural_seat_height",
            "seated_frames", "wants_chair"]

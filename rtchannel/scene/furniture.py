@@ -35,7 +35,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from processing.atomic import temporary_sibling
-from rtchannel.scene.assets import REPO_ROOT
+from rtchannel.assets import furniture_dir
 
 CHAIR = "chair"
 DEFAULT_SEAT_HEIGHT_M = 0.45
@@ -55,11 +55,6 @@ ITU_MATERIALS = ("concrete", "brick", "plasterboard", "wood", "glass", "clear_ac
                  "chipboard", "plywood", "marble", "floorboard", "vinyl_tile", "carpet_tile", "asphalt_concrete",
                  "metal", "very_dry_ground", "medium_dry_ground", "wet_ground")
 _SCENE_FORMAT = 1  # bump when the generated XML changes, so cached files are not reused
-
-
-def furniture_dir() -> Path:
-    """The project's furniture assets (`meshes/furniture/`)."""
-    return REPO_ROOT / "meshes" / "furniture"
 
 
 def allowed_mesh_dirs() -> list[Path]:

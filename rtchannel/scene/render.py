@@ -14,7 +14,7 @@ import numpy as np
 
 from processing.atomic import atomic_path
 from rtchannel.body.avatar import load_avatar
-from rtchannel.body.skeleton import Motion
+from rtchannel.motion.pose import Motion
 from rtchannel.body.skinning import skin_vertices
 
 _PALETTE = ((0.80, 0.35, 0.25), (0.25, 0.50, 0.80), (0.30, 0.70, 0.35), (0.85, 0.65, 0.20),

@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
 from rtchannel.errors import RadarPlacementError, SceneFileError
-from rtchannel.scene.assets import scenes_dir
+from rtchannel.assets import scenes_dir
 from rtchannel.scene.sandbox import load_error_line, load_scene_string, read_scene_xml
 from rtchannel.body.meshgeom import closest_point_on_triangles
 

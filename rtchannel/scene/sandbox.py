@@ -19,10 +19,10 @@ import re
 from pathlib import Path
 
 from rtchannel.errors import SceneFileError
-from rtchannel.scene.assets import REPO_ROOT, scenes_dir
+from rtchannel.assets import asset_root, scenes_dir
 
 # Folders every scene may reference besides its own (the project's scenes and meshes; add caches here).
-EXTRA_ROOTS: list[Path] = [scenes_dir(), REPO_ROOT / "meshes"]
+EXTRA_ROOTS: list[Path] = [scenes_dir(), asset_root("meshes")]
 MAX_SCENE_BYTES = 16 * 2**20  # a scene description (meshes are separate files); larger is not a hand-written scene
 MAX_ELEMENTS = 200_000  # XML elements over the scene and its includes
 MAX_INCLUDE_DEPTH = 8  # nested <include>; deeper is a cycle or a mistake

@@ -57,6 +57,24 @@ class Scene:
         new = tuple(f if isinstance(f, Furniture) else Furniture(**f) for f in items)
         return replace(self, furniture=self.furniture + new)
 
+    @classmethod
+    def for_motion(cls, motion, scene=None, chair: str = "auto") -> "Scene | None":
+        """The scene for `motion`: with ``chair="auto"`` and a sit/stand motion, `scene` (a `Scene`, a name or
+        an XML path; None = the room) plus the chair placed by `chair_fit.chair_for`; otherwise `scene`
+        unchanged (None stays None: the backend's default).
+
+        Raises:
+            ValueError: unknown `chair` mode, or a sit/stand motion without a seated phase.
+        """
+        from rtchannel.scene.chair_fit import CHAIR_MODES, wants_chair
+
+        if chair not in CHAIR_MODES:
+            raise ValueError(f"chair must be one of {', '.join(CHAIR_MODES)}, got {chair!r}")
+        if chair == "none" or not wants_chair(motion):
+            return scene
+        base = scene if isinstance(scene, Scene) else Scene("room" if scene is None else scene)
+        return base.with_chair_for(motion)
+
     def with_chair_for(self, motion, **options) -> "Scene":
         """This scene plus the built-in chair placed under the seated person of `motion`
         (`rtchannel.scene.chair_fit.chair_for`; `options` go to it). Raises ValueError without a seated phase."""

@@ -11,14 +11,18 @@ left side on +y, soles on z = 0.
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
+from scipy import sparse
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, Slerp
 
-from rtchannel.scene.assets import avatar_dir
+from rtchannel.assets import avatar_dir
+from rtchannel.errors import ConfigError
 
 # Topological order: every parent precedes its children.
 JOINT_NAMES: tuple[str, ...] = (
@@ -95,6 +99,27 @@ def avatar_rig(height: float | None = None) -> Rig:
     return rig if height is None else rig.scaled(height)
 
 
+# Frames per block of `blend_points`: keeps the blended [V, frames, 12] matrices near 50 MB for the full mesh.
+_BLOCK_ELEMENTS = 6_000_000
+MAX_FRAMES = 200_000  # frames of a resampled motion: 31 joints x 96 B = 0.6 GB at the limit
+
+# How `Motion.procedural` / `Motion.from_file` are made: registered by the package `rtchannel.motion` (its
+# generators and importers build on this module, so this module cannot import them).
+FACTORIES: dict[str, Callable[..., "Motion"]] = {}
+
+
+def _factory(kind: str) -> Callable[..., "Motion"]:
+    return FACTORIES[kind]  # the package's __init__ runs (and registers) before this module is imported
+
+
+def check_resampled_frames(duration_s: float, fps: float, what: str = "fps") -> int:
+    """Frame count of a `duration_s` motion resampled to `fps`; `ConfigError` above `MAX_FRAMES`."""
+    n = math.floor(duration_s * fps + 1e-9) + 1
+    if n > MAX_FRAMES:
+        raise ConfigError(f"{what}: {duration_s:.1f} s at {fps:g} Hz gives {n} frames, more than {MAX_FRAMES}")
+    return n
+
+
 @dataclass
 class Motion:
     """A pose sequence sampled at a constant frame rate.
@@ -124,23 +149,14 @@ class Motion:
         an explicit `start` is centred on the origin along its heading, so the default 4 m walk toward
         the seed's Radar 1 (3 m away) stops 1 m short of it; other activities happen over the origin.
         """
-        from rtchannel.motion.procedural import ProceduralParams, generate
-
-        if activity == "walk" and "start" not in params:
-            p = ProceduralParams(**params)
-            d = p.distance if p.distance is not None else (4.0 if p.duration is None else p.speed * p.duration)
-            h = np.deg2rad(p.heading_deg)
-            params = {**params, "start": (-d / 2 * np.cos(h), -d / 2 * np.sin(h))}
-        return generate(activity, **params)
+        return _factory("procedural")(activity, **params)
 
     @classmethod
     def from_file(cls, path, **options) -> "Motion":
-        """A BVH or C3D motion-capture take retargeted onto the avatar rig (metres, z up, soles on the
-        floor, starting over the origin facing +x); `options` as `rtchannel.motion.load.load_motion`
-        (height [m], activity, fps [Hz], units, up, ...)."""
-        from rtchannel.motion.load import load_motion
-
-        return load_motion(path, **options)
+        """A motion-capture take retargeted onto the avatar rig (metres, z up, soles on the floor, starting
+        over the origin facing +x); `options` as `rtchannel.motion.load.load_motion` (height [m], activity,
+        fps [Hz], units, up, ...)."""
+        return _factory("file")(path, **options)
 
     def __post_init__(self) -> None:
         f, j = self.positions.shape[:2]
@@ -184,11 +200,7 @@ class Motion:
         """The same motion at another frame rate: slerp for rotations, cubic splines for positions."""
         if fps == self.fps:
             return self
-        from rtchannel.motion.source import check_resampled_frames  # ConfigError before allocating
-
         if not (isinstance(fps, (int, float, np.number)) and 0 < fps < float("inf")):
-            from rtchannel.errors import ConfigError
-
             raise ConfigError(f"fps: must be a positive finite frame rate in Hz, got {fps!r}")
         t_old = self.times
         n_new = check_resampled_frames(self.duration, fps)
@@ -232,3 +244,29 @@ def forward_kinematics(rig: Rig, local_rotations: np.ndarray, root_positions: np
             rot[:, j] = rot[:, p] @ local_rotations[:, j]
             pos[:, j] = pos[:, p] + rot[:, p] @ (rig.rest[j] - rig.rest[p])
     return rot, pos
+
+
+def blend_points(weights: sparse.spmatrix, rest: np.ndarray, mats: np.ndarray) -> np.ndarray:
+    """Apply blended affine transforms to points.
+
+    Args:
+        weights: skinning weights [P, J] (sparse or dense).
+        rest: rest positions [P, 3] (m).
+        mats: per-frame joint transforms [F, J, 3, 4] (skinning matrices or their derivatives).
+
+    Returns:
+        [F, P, 3]: sum_j w_pj mats[f, j] [rest_p; 1].
+    """
+    f, j = mats.shape[:2]
+    p = rest.shape[0]
+    w = sparse.csr_matrix(weights)
+    xh = np.concatenate([rest, np.ones((p, 1))], axis=1)
+    out = np.empty((f, p, 3))
+    block = max(1, _BLOCK_ELEMENTS // max(1, 12 * p))
+    for s in range(0, f, block):
+        m = mats[s:s + block]
+        nb = m.shape[0]
+        # [J, nb*12] so one sparse product blends every frame of the block at once.
+        blended = (w @ m.transpose(1, 0, 2, 3).reshape(j, nb * 12)).reshape(p, nb, 3, 4)
+        out[s:s + nb] = np.einsum("pfab,pb->fpa", blended, xh, optimize=True)
+    return out

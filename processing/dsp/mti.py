@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from processing.waveform import C0
+from processing.radar.waveform import C0
 
 MA_CUTOFF_PRODUCT = 0.7553772304823293  # f_c L / PRF where sinc(f L / PRF) = 1 - 1/sqrt(2) (-3 dB of 1 - sinc)
 

@@ -1,7 +1,7 @@
 """Absolute receiver noise from the radar equation, transmit power and the receiver chain.
 
 Units. The synthesiser's IQ is in units of the transmit power: with |a|^2 = P_r / P_t per path (antenna
-gains included, see `processing.antenna`), a tone of IQ amplitude A means P_r = |A|^2 P_t. `scale_to_receiver`
+gains included, see `processing.radar.antenna`), a tone of IQ amplitude A means P_r = |A|^2 P_t. `scale_to_receiver`
 multiplies by sqrt(P_t [W] * G_chain); afterwards |iq|^2 is a power in watts: the received power at the
 antenna port times the chain gain (`chain_gain_db`, antenna port -> ADC output; 0 dB, the default, keeps
 the IQ referred to the receiver input). Volts across a reference resistance R are iq * sqrt(R).
@@ -19,7 +19,7 @@ filter passes exactly that band in this model. The complex envelope carries the 
 white from sample to sample, circular complex Gaussian (P_n / 2 in I and in Q). A real kit's filter may
 be narrower than fs; the noise then is coloured but the per-bin level inside the pass band is the same.
 
-After the FFTs (`processing.dsp` normalisations): the range FFT divides by sum(w) of the fast-time taper w,
+After the FFTs (`processing.dsp.signatures` normalisations): the range FFT divides by sum(w) of the fast-time taper w,
 so a range bin holds noise P_n sum(w^2) / sum(w)^2 (= P_n / N for the rectangular window) while an on-bin
 tone keeps its power |A|^2: an SNR gain of sum(w)^2 / sum(w^2) (= N). The Doppler FFT uses a taper u of
 unit energy (sum(u^2) = 1): a Doppler bin keeps the range bin's noise and a constant-velocity on-bin
@@ -48,8 +48,8 @@ from collections.abc import Sequence
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from processing.antenna import AntennaPattern, GaussianBeam, YagiBeam
-from processing.waveform import C0, Waveform
+from processing.radar.antenna import AntennaPattern, GaussianBeam, YagiBeam
+from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
 
 K_BOLTZMANN = 1.380649e-23  # J/K (exact, SI 2019)
@@ -199,34 +199,13 @@ def receive(iq: np.ndarray, cfg: ReceiverConfig, wf: Waveform, seed, first_chirp
 
 
 
-def received_iq(paths, wf: Waveform, cfg: "ReceiverConfig | None", seed, chunk_chirps: int = 1024,
-                method: str = "auto", oversample: int | None = None, progress=None) -> tuple[np.ndarray, np.ndarray]:
-    """(chirp start times [C] s, IQ [C, N]) of a path set synthesised chunk by chunk and, with a receiver
-    `cfg`, received (`receive`: sqrt(W), leakage, thermal noise keyed by chirp index, so chunking never
-    changes it); without one the IQ stays in units of the transmit power. `progress(n chirps)` per chunk."""
-    from processing.synthesis import iter_synthesis  # scipy: only when raw IQ is formed
-
-    t_parts, iq_parts, done = [], [], 0
-    for t, iq in iter_synthesis(paths, wf, chunk_chirps=chunk_chirps, method=method, oversample=oversample):
-        if cfg is not None:
-            iq = receive(iq, cfg, wf, seed=seed, first_chirp=done)
-        done += t.size
-        t_parts.append(t)
-        iq_parts.append(iq)
-        if progress is not None:
-            progress(t.size)
-    t_all = np.concatenate(t_parts) if t_parts else np.zeros(0)
-    iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
-    return t_all, iq
-
-
 def _taper(name: str, n: int) -> np.ndarray:
     return get_window(name, n, fftbins=True).astype(np.float64)
 
 
 def range_bin_noise(p_sample: float, n_samples: int, range_window: str = "boxcar") -> float:
     """Noise power [W] per range bin, P_n sum(w^2) / sum(w)^2, for white noise of `p_sample` per complex
-    sample under the DSP's range-FFT normalisation (`processing.fast_time.project`) (divide by sum(w)). A range-Doppler bin
+    sample under the DSP's range-FFT normalisation (`processing.dsp.fast_time.project`) (divide by sum(w)). A range-Doppler bin
     holds the same level: the DSP's Doppler taper has unit energy, which leaves white noise unchanged."""
     w = _taper(range_window, n_samples)
     return p_sample * float((w ** 2).sum() / w.sum() ** 2)

@@ -12,7 +12,7 @@ vendor's MATLAB readers: a plain-text file, one number per line.
             interleaved one by one (channel 1, channel 2, channel 1, ...), as the 2-channel kits write them.
 
 The reader returns IQ [n_chirps, n_samples] per channel and the matching `Waveform` (PRI = sweep time,
-the software's sawtooth with no idle time), so recordings go through `processing.dsp.signatures`
+the software's sawtooth with no idle time), so recordings go through `processing.dsp.signatures.signatures`
 exactly like simulated IQ. The simulator's IQ convention is kept as written; `conjugate=True` flips the
 sign of Doppler for recordings made with the opposite I/Q convention (some vendor readers conjugate).
 """
@@ -26,7 +26,7 @@ import numpy as np
 
 from processing.atomic import atomic_path
 from processing.errors import InputError
-from processing.waveform import Waveform
+from processing.radar.waveform import Waveform
 
 _SPACE = re.compile(r"\s+")
 # Limits (docs/validation.md), each with its reason:
@@ -264,7 +264,7 @@ def recording_samples(paths, links, dsp=None, n_channels: int = 1, conjugate: bo
     that the simulated data being compared with went through; default `DSPConfig()`. Each recording's own
     header gives the waveform, so the same DSP settings give the same physical axes.
     """
-    from processing.dsp import DSPConfig, signatures
+    from processing.dsp.signatures import DSPConfig, signatures
 
     dsp = DSPConfig.model_validate(dsp) if isinstance(dsp, dict) else (dsp or DSPConfig())
     links = list(links)

@@ -47,7 +47,7 @@ _SHARD_NAME = re.compile(r"^[A-Za-z0-9_.\-]+\.h5$")  # a plain file name inside 
 
 
 def signature_arrays(sig) -> dict[str, np.ndarray]:
-    """The stored arrays of a `processing.dsp.Signature` (float32; `valid` bool)."""
+    """The stored arrays of a `processing.dsp.signatures.Signature` (float32; `valid` bool)."""
     out = {}
     for key in SIGNATURE_ARRAYS:
         a = np.asarray(getattr(sig, key))

@@ -1,17 +1,17 @@
 """Folders of real micro-Doppler spectrogram images (Glasgow campaign-1 layout) as labelled signatures.
 
 Used by sim-to-real evaluation (`processing.classifier.images`) and the real-data Table I
-(`processing.sim_real_table`). Labels come from Glasgow file names (``1P36A01R01.png``: leading digit
+(`processing.metrics.sim_real_table`). Labels come from Glasgow file names (``1P36A01R01.png``: leading digit
 = activity, P<n> = subject) or from a CSV ``file,activity[,subject]`` for other names.
 
-Noise-only columns: the reader (`processing.spectrogram_image`) marks a column valid when any pixel is
+Noise-only columns: the reader (`processing.realdata.spectrogram_image`) marks a column valid when any pixel is
 above the 40 dB colour floor, but in these renders the radar's own noise sits inside the 40 dB span.
 Measured on all 360 campaign-1 images (column power relative to the image's strongest column): the
 quiet parts of 5 s recordings (before/after a fall, sit, stand, pick, drink) have column power -35 to
 -48 dB (5th percentile per image), the active parts -2 to -17 dB (median per image) and walks never
 drop below -22 dB. `NOISE_COLUMN_DB` = -30 dB sits between the two, about 6 dB above the loudest quiet
 parts (the same 6 dB margin as `DSPConfig.detection_snr_db` for simulated signatures). Columns below it
-are not valid and, as for simulated signatures (`processing.dsp`), keep their spectrum but get mean
+are not valid and, as for simulated signatures (`processing.dsp.signatures`), keep their spectrum but get mean
 velocity 0.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from processing.dsp import Signature
+from processing.dsp.signatures import Signature
 from processing.errors import InputError
 
 NOISE_COLUMN_DB = -30.0  # column power below this (re the strongest column) is noise only; see above
@@ -115,7 +115,7 @@ def list_images(folder: str | Path) -> list[Path]:
 
 def image_label(path: Path, labels: dict | None) -> tuple[str, int | None]:
     """(activity, subject) of an image: from `labels` if it names the file, else from its Glasgow name."""
-    from processing.spectrogram_image import SpectrogramImageError, parse_glasgow_name
+    from processing.realdata.spectrogram_image import SpectrogramImageError, parse_glasgow_name
 
     if labels is not None and path.name in labels:
         return labels[path.name]
@@ -139,7 +139,7 @@ def noise_aware(sig: Signature, noise_column_db: float = NOISE_COLUMN_DB) -> Sig
 def read_real_image(path: str | Path, noise_column_db: float = NOISE_COLUMN_DB) -> Signature:
     """Noise-aware signature of one Glasgow-layout image (pixel grid: 317 velocity bins over +-6 m/s,
     377 or 383 time bins over 10 or 5 s). Raises RealImageError (one line naming the file)."""
-    from processing.spectrogram_image import SpectrogramImageError, read_glasgow_image
+    from processing.realdata.spectrogram_image import SpectrogramImageError, read_glasgow_image
 
     try:
         return noise_aware(read_glasgow_image(Path(path), name=Path(path).name).signature, noise_column_db)

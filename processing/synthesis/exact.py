@@ -21,7 +21,8 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from processing.pathset import PathSet
-from processing.waveform import C0, Waveform
+from processing.radar.receiver import ReceiverConfig, receive
+from processing.radar.waveform import C0, Waveform
 
 
 class NyquistWarning(UserWarning):
@@ -154,7 +155,7 @@ def grid_pieces(paths: PathSet) -> tuple:
     spline (P' = P; no copies). Frame-local paths: frame k's paths extrapolated with their rates and fading
     out, plus frame k+1's fading in (P' = 2P), as `_FrameLocalPaths` does.
     """
-    from processing.synthesis_grid import prepare_frames
+    from processing.synthesis.grid import prepare_frames
 
     t, g = paths.times, paths.gains
     if paths.persistent:
@@ -217,7 +218,7 @@ def iter_weighted(paths: PathSet, wf: Waveform, weights: np.ndarray | None = Non
     use_grid = uses_grid(paths, method)
     reported: set = set()
     if use_grid:
-        from processing.synthesis_grid import OVERSAMPLE, grid_to_iq, projection_matrix, spread, spread_kernel
+        from processing.synthesis.grid import OVERSAMPLE, grid_to_iq, projection_matrix, spread, spread_kernel
 
         kernel = spread_kernel(OVERSAMPLE if oversample is None else oversample)
         knots, y0, y1, m0, m1, g0, g1, rate_max, delay_max = grid_pieces(paths)
@@ -249,3 +250,22 @@ def synthesise(paths: PathSet, wf: Waveform, t_start: float | None = None, t_sto
     if not t_parts:
         return np.zeros(0), np.zeros((0, wf.samples_per_chirp), np.complex64)
     return np.concatenate(t_parts), np.concatenate(iq_parts)
+
+
+def received_iq(paths, wf: Waveform, cfg: "ReceiverConfig | None", seed, chunk_chirps: int = 1024,
+                method: str = "auto", oversample: int | None = None, progress=None) -> tuple[np.ndarray, np.ndarray]:
+    """(chirp start times [C] s, IQ [C, N]) of a path set synthesised chunk by chunk and, with a receiver
+    `cfg`, received (`receive`: sqrt(W), leakage, thermal noise keyed by chirp index, so chunking never
+    changes it); without one the IQ stays in units of the transmit power. `progress(n chirps)` per chunk."""
+    t_parts, iq_parts, done = [], [], 0
+    for t, iq in iter_synthesis(paths, wf, chunk_chirps=chunk_chirps, method=method, oversample=oversample):
+        if cfg is not None:
+            iq = receive(iq, cfg, wf, seed=seed, first_chirp=done)
+        done += t.size
+        t_parts.append(t)
+        iq_parts.append(iq)
+        if progress is not None:
+            progress(t.size)
+    t_all = np.concatenate(t_parts) if t_parts else np.zeros(0)
+    iq = np.concatenate(iq_parts) if iq_parts else np.zeros((0, wf.samples_per_chirp), np.complex64)
+    return t_all, iq

@@ -2,7 +2,7 @@
 
 Defaults follow the seed (64-chirp rectangular window, hop 32, coherent range sum, eq. 8 mean velocity)
 with a local slow-time MTI filter for static returns instead of the whole-recording mean (see
-`processing.mti`; the choice of filter and cut-off is justified at `DEFAULT_MTI_CUTOFF_MPS`).
+`processing.dsp.mti`; the choice of filter and cut-off is justified at `DEFAULT_MTI_CUTOFF_MPS`).
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ DEFAULT_MTI_CUTOFF_MPS = 0.02
 # COHERENT_OFFSET_NOTE. The coherent range sum (seed eq. 6) weights the first ~R_unamb / max_range samples
 # of each chirp (91 % of its weight on the first 8 of 128 at the seed's settings). On real sawtooth
 # hardware those samples carry the synthesiser's settling transient after the frequency reset, and the
-# default DSP is also what real `.dat` recordings go through (`processing.ancortek`). Skipping N // 16
+# default DSP is also what real `.dat` recordings go through (`processing.realdata.ancortek`). Skipping N // 16
 # samples (31 us of the seed's 0.5 ms chirp) moves the weights past it; on simulated IQ, which has no
 # transient, it changes nothing but the effective carrier the velocity axis refers to (walk slope 1.00 and
 # RMSE 0.142 vs 0.144 m/s with no offset, measured), and the Doppler stays right (tests/test_dsp_axes.py).
@@ -72,9 +72,9 @@ class DSPConfig(BaseModel):
     coherent_offset_samples: int | None = Field(
         None, ge=0, le=16384, description="coherent sum: skip this many fast-time samples after the chirp reset; "
         "default N // 16 (8 of 128), see COHERENT_OFFSET_NOTE")
-    # slow-time clutter removal (processing.mti)
+    # slow-time clutter removal (processing.dsp.mti)
     static_removal: Literal["moving_average", "butterworth", "mean", "none"] = Field(
-        "moving_average", description="slow-time clutter filter per range bin (see processing.mti)")
+        "moving_average", description="slow-time clutter filter per range bin (see processing.dsp.mti)")
     mti_cutoff_mps: float = Field(DEFAULT_MTI_CUTOFF_MPS, gt=0, le=100, description="MTI -3 dB cut-off as a radial "
                                   "velocity [m/s] (f_c = 2 v / lambda of the waveform's carrier)")
     mti_cutoff_hz: float | None = Field(None, gt=0, le=1e6, description="MTI cut-off in Hz; overrides mti_cutoff_mps")

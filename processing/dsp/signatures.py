@@ -1,9 +1,9 @@
 """Radar DSP: range profiles, slow-time clutter removal, micro-Doppler p(v,t), mean velocity, range
 distribution and range-Doppler map (seed eqs. 5-10).
 
-Two stages. The fast-time stage (`processing.fast_time.project`) turns raw IQ [C, N] into range profiles
+Two stages. The fast-time stage (`processing.dsp.fast_time.project`) turns raw IQ [C, N] into range profiles
 of the used bins and the coherent range-sum slow-time signal; the slow-time stage
-(`signatures_from_projection`) does everything else: MTI clutter filter (`processing.mti`), STFT over
+(`signatures_from_projection`) does everything else: MTI clutter filter (`processing.dsp.mti`), STFT over
 `window_chirps` chirps every `hop_chirps`, p(v,t), eq.-8 mean velocity, range distribution, range-Doppler
 map. `signatures(iq, ...)` is exactly the two in a row; a synthesiser may build the `Projection` itself.
 
@@ -20,7 +20,7 @@ odd FFT length there is no Nyquist bin and the axis is symmetric.) f_ref, the ca
 to, is stored as `Signature.carrier_hz`, and `Signature.v_max` is v_max above. For per-range-bin
 processing (range_sum "incoherent"/"magnitude", and always for the range-Doppler map) a range bin's phase
 refers to mid-chirp, so f_ref = `Waveform.carrier_hz` and v_max = `Waveform.v_max` exactly. The coherent
-range sum's phase refers to where its fast-time weights sit (`processing.fast_time.coherent_weights`),
+range sum's phase refers to where its fast-time weights sit (`processing.dsp.fast_time.coherent_weights`),
 so its f_ref is that instantaneous frequency, 0.4-0.5 % below the centre at the seed's radar: labelling it
 with the centre frequency would scale every velocity by that much. With a velocity crop the axes keep
 only |v| <= `velocity_crop_mps`.
@@ -37,10 +37,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from processing.dsp_config import DEFAULT_MTI_CUTOFF_MPS, GLASGOW_DSP, DSPConfig
-from processing.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
-from processing.mti import mti_filter
-from processing.waveform import C0, Waveform
+from processing.dsp.config import DEFAULT_MTI_CUTOFF_MPS, GLASGOW_DSP, DSPConfig
+from processing.dsp.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
+from processing.dsp.mti import mti_filter
+from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
 
 __all__ = ["DEFAULT_MTI_CUTOFF_MPS", "DSPConfig", "GLASGOW_DSP", "Projection", "Signature", "column_sums",

@@ -1,7 +1,7 @@
 """The seed's Table I against real recordings: normalised DTW between simulated and real mean-velocity
 curves, activity x activity (rows simulated, columns real, as in the seed).
 
-A cell is the mean of `processing.metrics.normalised_dtw` (RMS difference along the optimal warping path
+A cell is the mean of `processing.metrics.distances.normalised_dtw` (RMS difference along the optimal warping path
 per time bin, over the pair's peak |v|: the same normalisation as the backend-vs-backend Table I of
 `rtchannel compare`) over every (simulated curve, real curve) pair of the two activities; the standard
 deviation and pair count are written beside it. Before DTW both curves are resampled (linear
@@ -9,7 +9,7 @@ interpolation) to one time step `dt_s`, because the normalisation divides by the
 real Glasgow columns are 13 or 26.5 ms apart (5 s or 10 s over 383 or 377 px), simulated windows 16 ms.
 
 Curves come from `signature.h5` files or a dataset (one link), and from real images
-(`processing.real_images`: mean velocity 0 in noise-only columns, as in simulated signatures).
+(`processing.realdata.real_images`: mean velocity 0 in noise-only columns, as in simulated signatures).
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import numpy as np
 
 from processing.atomic import savefig_atomic, write_text_atomic
 from processing.errors import InputError
-from processing.metrics import normalised_dtw
+from processing.metrics.distances import normalised_dtw
 
 DEFAULT_DT_S = 0.016  # the seed's STFT hop (32 chirps of 0.5 ms)
 ORDER = ("fall", "walk", "stand", "sit", "pick", "drink")  # the seed's Table I order, then drink
@@ -49,7 +49,7 @@ def resample(curve: Curve, dt_s: float) -> np.ndarray:
 
 def curves_from_signature_files(paths, link: str) -> list[Curve]:
     """Curves of link `link` of `signature.h5` files (activity from the file's `activity` attribute)."""
-    from processing.signature_file import read_signature_file
+    from processing.io.signature_file import read_signature_file
 
     out = []
     for p in paths:
@@ -72,7 +72,7 @@ def curves_from_dataset(reader, indices, link: str) -> list[Curve]:
 
 
 def curves_from_images(images) -> list[Curve]:
-    """Curves of `processing.real_images.RealImage`s."""
+    """Curves of `processing.realdata.real_images.RealImage`s."""
     return [Curve(im.name, im.activity, im.signature.time, im.signature.mean_velocity) for im in images]
 
 

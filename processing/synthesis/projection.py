@@ -1,8 +1,8 @@
 """Consumed-only synthesis: the DSP's fast-time projection of one link straight from its paths, no raw IQ.
 
-The DSP reads a chirp only through linear maps of its N samples (`processing.fast_time`): the range profile of
+The DSP reads a chirp only through linear maps of its N samples (`processing.dsp.fast_time`): the range profile of
 the used bins, iq @ W [N, R], and for the coherent range sum (seed eq. 6) one slow-time value, iq @ h [N]. The
-gridded synthesiser (`processing.synthesis_grid`) makes a chirp's IQ as a fixed linear map of its spread grid
+gridded synthesiser (`processing.synthesis.grid`) makes a chirp's IQ as a fixed linear map of its spread grid
 b [M + w + 1] (fold, M-point inverse FFT, division by the kernel's transform), so
 
     iq @ [W h] = b @ P,   P = `synthesis_grid.projection_matrix([W h])`   [M + w + 1, R + 1],
@@ -17,7 +17,7 @@ error_bound x sum_m |h_m| x sum_p |a_p|. With few paths (the exact route of `syn
 the points backend) the IQ is cheap: it is synthesised, received and projected exactly as in the full route,
 so the result is bitwise the full route's.
 
-Receiver (`processing.receiver.receive`): the ADC records s x (synthesiser IQ) + leakage + thermal noise,
+Receiver (`processing.radar.receiver.receive`): the ADC records s x (synthesiser IQ) + leakage + thermal noise,
 s = sqrt(P_t G_chain). All three terms go through the same linear maps, so the projection of what the ADC
 records is s (b @ P) + project(leakage + noise): the noise and leakage of the same chirps are drawn exactly
 as `receive` draws them (same seed, keyed by chirp index, so chunking never changes them) and projected with
@@ -31,10 +31,10 @@ import math
 
 import numpy as np
 
-from processing.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
+from processing.dsp.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
 from processing.pathset import PathSet
-from processing.synthesis import chirp_times, iter_weighted, uses_grid
-from processing.waveform import Waveform
+from processing.synthesis.exact import chirp_times, iter_weighted, uses_grid
+from processing.radar.waveform import Waveform
 
 
 def projection_weights(wf: Waveform, cfg) -> tuple[np.ndarray, np.ndarray, float]:
@@ -63,13 +63,14 @@ def synthesise_projection(paths: PathSet, wf: Waveform, cfg, receiver=None, seed
         method, chunk_chirps, oversample: as `synthesis.iter_synthesis`.
         progress: optional callable receiving the number of chirps done after each chunk.
     """
-    from processing.receiver import leakage_iq, received_iq, receiver_noise, transmit_power_w
+    from processing.radar.receiver import leakage_iq, receiver_noise, transmit_power_w
+    from processing.synthesis.exact import received_iq
 
     if not uses_grid(paths, method):
         t_all, iq = received_iq(paths, wf, receiver, seed, chunk_chirps=chunk_chirps, method=method,
                                 oversample=oversample, progress=progress)
         return t_all, project(iq, wf, cfg, t0=float(t_all[0]) if t_all.size else 0.0)
-    from processing.synthesis_grid import project_rows  # numba: imported only on the grid route
+    from processing.synthesis.grid import project_rows  # numba: imported only on the grid route
 
     weights, rng, f_eff = projection_weights(wf, cfg)
     n_range = rng.size

@@ -2,8 +2,8 @@
 
 Both are linear maps of each chirp's N samples, given here as weight matrices so that a synthesiser can
 produce them straight from paths, without raw IQ: for a path of gain a and delay tau (short-time stationary
-over the chirp, as in `processing.synthesis`), chirp c contributes a * `path_response(W, tau, wf)` to
-`iq[c] @ W`. A `Projection` built that way goes through `processing.dsp.signatures_from_projection`
+over the chirp, as in `processing.synthesis.exact`), chirp c contributes a * `path_response(W, tau, wf)` to
+`iq[c] @ W`. A `Projection` built that way goes through `processing.dsp.signatures.signatures_from_projection`
 exactly like one from `project(iq, ...)`.
 
 Range bins. Bin k of the N-point range FFT is the beat frequency k fs / N, i.e. range k dR (bistatic: half
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from processing.waveform import Waveform
+from processing.radar.waveform import Waveform
 from processing.windows import get_window
 
 

@@ -1,7 +1,7 @@
 """Render a spectrogram (dB or power on a velocity x time grid) into an image in exactly a given layout.
 
 Simulated signatures written in the layout of real recordings (e.g. the Glasgow one) can be compared
-side by side with them and read back through the same `processing.spectrogram_image` reader.
+side by side with them and read back through the same `processing.realdata.spectrogram_image` reader.
 
 The plot box holds only the spectrogram, coloured as MATLAB's ``imagesc`` and matplotlib's ``imshow``
 do: the span [top - span, top] dB (top = the strongest value of the grid unless given) is cut into N
@@ -21,9 +21,9 @@ import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
 from processing.atomic import atomic_path
-from processing.colormaps import colormap_inverse
-from processing.dsp import Signature
-from processing.spectrogram_image import ImageLayout, SpectrogramImageError, cell_edges
+from processing.realdata.colormaps import colormap_inverse
+from processing.dsp.signatures import Signature
+from processing.realdata.spectrogram_image import ImageLayout, SpectrogramImageError, cell_edges
 
 
 def _colour_indices(db: np.ndarray, top_db: float, layout: ImageLayout) -> np.ndarray:
@@ -167,7 +167,7 @@ def through_image(sig: Signature, layout: ImageLayout, duration_s: float | None 
     fields are empty (an image has none); `power` is the image's column power."""
     from dataclasses import replace
 
-    from processing.spectrogram_image import read_spectrogram_image
+    from processing.realdata.spectrogram_image import read_spectrogram_image
 
     p = np.asarray(sig.p_vt, dtype=np.float64) * np.asarray(sig.power, dtype=np.float64)[None, :]
     with np.errstate(divide="ignore"):

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from processing.waveform import C0, Waveform
+from processing.radar.waveform import C0, Waveform
 
 
 def signal_power(iq: np.ndarray) -> float:

@@ -1,7 +1,7 @@
 """Distances between radar signatures: normalised DTW of mean-velocity curves (the seed's Table I),
 total-variation distance between velocity distributions, mean-velocity RMSE.
 
-All take arrays from `processing.dsp.Signature` (or a stored `signature.h5`) of equal waveform and DSP
+All take arrays from `processing.dsp.signatures.Signature` (or a stored `signature.h5`) of equal waveform and DSP
 settings; time axes of different lengths are compared over their common prefix (RMSE, TV) or warped (DTW).
 
 Determinism: every sum here is a numpy reduction (`sum`, `cumsum`, `mean`) or dtaidistance's C loop, whose

@@ -1,4 +1,4 @@
-"""The spreading kernel of the gridded synthesiser (`processing.synthesis_grid`): design and error bound.
+"""The spreading kernel of the gridded synthesiser (`processing.synthesis.grid`): design and error bound.
 
 phi(t) = exp(beta (sqrt(1 - (2t/w)^2) - 1)) - exp(-beta) for |t| < w/2 cells, 0 outside: the "exponential of
 semicircle" of Barnett, Magland & af Klinteberg (SIAM J. Sci. Comput. 41, 2019), beta = 0.97 pi w

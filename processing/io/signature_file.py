@@ -9,7 +9,7 @@ range-Doppler map `range_doppler` [n_range, n_rd_velocity, n_rd_time] (float32) 
 `iq` [n_chirps, n_samples]; group attributes `tx`, `rx` (m).
 
 Size. The range-Doppler map is the largest array: one map per `DSPConfig.rd_stride(PRI)`-th window
-(default: about 10 maps per second and never overlapping, `processing.dsp_config.RD_MIN_INTERVAL_S`),
+(default: about 10 maps per second and never overlapping, `processing.dsp.config.RD_MIN_INTERVAL_S`),
 float32, gzip with byte shuffling; a 5 s walk at the seed's settings adds ~0.2 MB per link to ~0.2 MB of
 the rest. `DSPConfig(range_doppler=False)` leaves it out. Files of version 1 (no `carrier_hz`, `v_max`,
 map) still read: those fields keep their defaults (0, None).
@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 
 from processing.atomic import atomic_path
-from processing.dsp import Signature
+from processing.dsp.signatures import Signature
 from processing.errors import InputError
 
 FORMAT_VERSION = "2"

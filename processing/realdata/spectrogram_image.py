@@ -3,7 +3,7 @@
 Real recordings that exist only as rendered figures (e.g. the Glasgow "Radar signatures of human
 activities" set, DOI 10.5525/gla.researchdata.848) are read back into the project's p(v,t) (seed eq. 7)
 and mean velocity (eq. 8) by inverting the colormap pixel by pixel. The writer that renders simulated
-signatures in the same layout is `processing.spectrogram_image_writer`.
+signatures in the same layout is `processing.realdata.spectrogram_image_writer`.
 
 Pixel convention: 0-based (row, column) indices with row 0 at the top, as numpy indexes an image; the
 plot box is given by its first and last row and column, *inclusive*. The axis values of the layout are
@@ -13,12 +13,12 @@ dB convention: the image shows a dB scale whose top is the strongest pixel of th
 returns dB relative to that top (0 dB = top of the colour scale, -span = bottom). Colour entry k of N
 covers [-span + k span/N, -span + (k+1) span/N) and is read as that bin's centre, so an exact colour
 carries at most span/(2N) of error (0.078 dB for 40 dB and 256 colours; L span/(2N) for colormaps whose
-8-bit entries repeat in runs of L, see `processing.colormaps.ColormapInverse`). The Glasgow images are
+8-bit entries repeat in runs of L, see `processing.realdata.colormaps.ColormapInverse`). The Glasgow images are
 20 log10 of an STFT *magnitude*; 20 log10 |S| = 10 log10 |S|^2, so power = 10^(dB/10) either way.
 
 Floor: the bottom colour holds everything from -span + span/N dB down to -inf, i.e. "below the scale".
 By default (`floor="zero"`) such pixels get power 0, so a column with nothing above the floor is empty
-(p = 0, mean velocity 0, valid False, as in `processing.dsp`) instead of a uniform 1e-4 pedestal that
+(p = 0, mean velocity 0, valid False, as in `processing.dsp.signatures`) instead of a uniform 1e-4 pedestal that
 would pull the mean velocity of quiet columns toward the middle of the axis. `floor="keep"` gives them
 the floor bin's centre value.
 """
@@ -34,9 +34,9 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.ndimage import distance_transform_edt
 
-from processing.ancortek import GLASGOW_ACTIVITY_CODES
-from processing.colormaps import colormap_inverse
-from processing.dsp import DSPConfig, Signature, _normalise, mean_velocity
+from processing.realdata.ancortek import GLASGOW_ACTIVITY_CODES
+from processing.realdata.colormaps import colormap_inverse
+from processing.dsp.signatures import DSPConfig, Signature, _normalise, mean_velocity
 
 # Colour distance (Euclidean, 8-bit levels) within which a pixel counts as a colormap colour: renderers
 # truncate (or round) 255 c, i.e. <= 1 level per channel, sqrt(3) ~ 1.7 in all; 6 leaves room for

@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from processing.atomic import savefig_atomic
-from processing.dsp import Signature
+from processing.dsp.signatures import Signature
 
 DYNAMIC_RANGE_DB = 40.0
 RD_PANELS = 6  # range-Doppler maps shown per link

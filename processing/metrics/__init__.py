@@ -1,0 +1,1 @@
+"""Validation metrics: normalised DTW (Table I), p(v,t) distances, simulated-against-real tables."""

@@ -1,0 +1,1 @@
+"""Figures: signatures (spectrograms, mean velocity, range-time) and classifier plots."""

@@ -1,0 +1,1 @@
+"""Real radar data: Ancortek recordings and real micro-Doppler spectrogram images (Glasgow dataset)."""
