@@ -8,6 +8,8 @@ The public API (few nouns, one `simulate`)::
     radar = Radar.seed(direction=1)                               # the seed's 2x2 MIMO radar
     result = simulate(motion, radar, backend="facets", scene=Scene.room())
     result.signatures["radar1"].p_vt                              # p(v, t), eq. 7
+    channel = trace(motion, radar, backend="facets")              # the path sets per link, then
+    result = synthesise(channel)                                  # raw IQ and signatures (= simulate)
     result.save("out/signature.h5"); result.plot("out/")
     results = simulate_radars(motion, [Radar.seed(direction=d) for d in range(1, 19)], backend="facets")
                                                                   # 18 directions, body traced once per frame
@@ -18,23 +20,37 @@ dependencies are installed, which the Makefile's LLVM check relies on).
 __version__ = "0.1.0"
 
 _EXPORTS = {
+    # motion, radar, scene
     "Motion": ("rtchannel.motion.pose", "Motion"),
+    "Rig": ("rtchannel.motion.pose", "Rig"),
     "Radar": ("rtchannel.radar", "RadarConfig"),
     "Link": ("rtchannel.radar", "Link"),
     "Scene": ("rtchannel.scene.spec", "Scene"),
+    "Waveform": ("processing.radar.waveform", "Waveform"),
+    "Isotropic": ("processing.radar.antenna", "Isotropic"),
+    "GaussianBeam": ("processing.radar.antenna", "GaussianBeam"),
+    "YagiBeam": ("processing.radar.antenna", "YagiBeam"),
+    "ReceiverConfig": ("processing.radar.receiver", "ReceiverConfig"),
+    "LeakageConfig": ("processing.radar.receiver", "LeakageConfig"),
+    "RadarHardware": ("processing.radar.receiver", "RadarHardware"),
+    "DSPConfig": ("processing.dsp.config", "DSPConfig"),
+    # the chain: trace (the channel) -> synthesise (IQ, signatures); simulate = both
+    "trace": ("rtchannel.pipeline", "trace"),
+    "synthesise": ("rtchannel.pipeline", "synthesise"),
     "simulate": ("rtchannel.pipeline", "simulate"),
     "simulate_radars": ("rtchannel.pipeline", "simulate_radars"),
+    "PathSets": ("rtchannel.pipeline", "PathSets"),
+    "PathSet": ("processing.pathset", "PathSet"),
     "SimulationResult": ("rtchannel.pipeline", "SimulationResult"),
-    "Waveform": ("processing.radar.waveform", "Waveform"),
-    "DSPConfig": ("processing.dsp.signatures", "DSPConfig"),
     "Signature": ("processing.dsp.signatures", "Signature"),
+    # files and figures
     "load_signatures": ("processing.io.signature_file", "read_signature_file"),
     "plot_signatures": ("processing.plots.signatures", "plot_all"),
     "plot_pvt": ("processing.plots.signatures", "plot_pvt"),
     "plot_mean_velocity": ("processing.plots.signatures", "plot_mean_velocity"),
     "plot_range": ("processing.plots.signatures", "plot_range"),
     "BACKENDS": ("rtchannel.backends", "BACKENDS"),
-    "ACTIVITIES": ("rtchannel.motion.procedural", "ACTIVITIES"),
+    "ACTIVITIES": ("processing.labels", "ACTIVITIES"),
 }
 
 __all__ = sorted(_EXPORTS)

@@ -143,17 +143,110 @@ def _described(backend_options: dict) -> dict:
             if k not in ("timing", "stats")}
 
 
-def _config(motion: Motion, radar: RadarConfig, backend: str, options: dict, synthesis: str, noise_seed: int) -> dict:
-    """Every parameter that made a result (JSON-serialisable; stored by `SimulationResult.save`)."""
-    return {"activity": motion.activity, "motion": motion.params, "radar": radar.model_dump(mode="json"),
-            "backend": backend, "backend_options": options, "synthesis": synthesis, "noise_seed": noise_seed,
+def _config(traced: dict, radar: RadarConfig, synthesis: str, noise_seed: int) -> dict:
+    """Every parameter that made a result (JSON-serialisable; stored by `SimulationResult.save`): what the
+    channel was traced from (`traced`: activity, motion, backend, backend_options) and how it was synthesised."""
+    return {**{k: traced.get(k, d) for k, d in (("activity", ""), ("motion", {}))}, "radar": radar.model_dump(mode="json"),
+            **{k: traced.get(k, d) for k, d in (("backend", ""), ("backend_options", {}))},
+            "synthesis": synthesis, "noise_seed": noise_seed,
             "iq_unit": "sqrt(W) at the ADC" if radar.receiver is not None else "sqrt(transmit power)"}
+
+
+def _traced(motion: Motion, backend: str, options: dict) -> dict:
+    return {"activity": motion.activity, "motion": motion.params, "backend": backend,
+            "backend_options": _described(options)}
+
+
+def _motion_seed(motion_params: dict) -> int:
+    return int(motion_params.get("seed", 0) or 0)
+
+
+@dataclass
+class PathSets:
+    """The channel between motion and radar: one `PathSet` per link (delays [s], complex gains with
+    |a|^2 = P_r/P_t, path ids, delay rates [s/s] at frame times [s]), the radar whose links they belong to,
+    and what made them (`config`: motion, backend, options; `timing` [s]). `trace` makes it, `synthesise`
+    turns it into raw IQ and signatures, so a channel can be stored, inspected or synthesised for several
+    waveforms and DSP settings of the same antennas."""
+
+    paths: dict[str, PathSet]
+    radar: RadarConfig
+    config: dict = field(default_factory=dict)
+    timing: dict[str, float] = field(default_factory=dict)
+
+    def __getitem__(self, link: str) -> PathSet:
+        return self.paths[link]
+
+    def __iter__(self):
+        return iter(self.paths)
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+
+def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
+          **backend_options) -> PathSets:
+    """The channel of `motion` seen by every link of `radar`: the backend's path sets, nothing synthesised.
+
+    Args:
+        motion: the pose sequence (`rtchannel.Motion`).
+        radar: antennas and links (`rtchannel.Radar`); default the seed's 2x2 system.
+        backend: "points", "facets" or "sionna" (`rtchannel.BACKENDS`).
+        scene: mesh backends only: a `rtchannel.Scene`, "room" (default), "free_space" or a Mitsuba XML path.
+        **backend_options: the backend's options, checked by name and type (e.g. ``lod="5k"``).
+
+    Returns:
+        `PathSets` (one `PathSet` per link name).
+    """
+    radar = RadarConfig() if radar is None else radar
+    if scene is not None:
+        if backend in MESH_BACKENDS:
+            backend_options["scene"] = scene
+        elif str(scene) != "free_space":
+            warnings.warn(f"the {backend} backend is a free-space model: scene '{scene}' is not used",
+                          stacklevel=2)
+    t0 = time.perf_counter()
+    paths = backend_paths(motion, radar, backend, **backend_options)
+    timing = {"backend": time.perf_counter() - t0}
+    return PathSets(paths=paths, radar=radar, config=_traced(motion, backend, backend_options), timing=timing)
+
+
+def synthesise(channel: PathSets, radar: RadarConfig | None = None, *, keep_iq: bool = False, progress=None,
+               synthesis: str = "auto", iq_transform=None, noise_seed: int | None = None) -> SimulationResult:
+    """Raw IQ (optional) and signatures of a traced channel: the shared FMCW synthesiser, receiver noise and
+    DSP per link.
+
+    Args:
+        channel: `trace`'s result.
+        radar: the radar to synthesise for (default the traced one). It may change the waveform's chirp
+            timing, the DSP and the receiver, but not the antennas: its links must be the traced ones.
+        keep_iq, progress, synthesis, iq_transform: as `simulate`.
+        noise_seed: seed of the receiver noise (default: the motion's seed, else 0).
+
+    Returns:
+        `SimulationResult`; its ``timing`` includes the channel's backend time.
+    """
+    from processing.errors import InputError
+
+    radar = channel.radar if radar is None else radar
+    traced = {lk.name: (tuple(lk.tx_pos), tuple(lk.rx_pos)) for lk in channel.radar.links}
+    wanted = {lk.name: (tuple(lk.tx_pos), tuple(lk.rx_pos)) for lk in radar.links}
+    if wanted != traced or radar.waveform.carrier_hz != channel.radar.waveform.carrier_hz:
+        raise InputError("synthesise: the radar's links (names, antenna positions) and carrier must be the "
+                         "traced ones; trace again for other antennas or another carrier")
+    if noise_seed is None:
+        noise_seed = _motion_seed(channel.config.get("motion", {}))
+    timing = dict(channel.timing)
+    links = process_paths(channel.paths, radar, keep_iq=keep_iq, progress=progress, timing=timing,
+                          synthesis=synthesis, iq_transform=iq_transform, noise_seed=noise_seed)
+    return SimulationResult(links=links, timing=timing, config=_config(channel.config, radar, synthesis, noise_seed))
 
 
 def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
              keep_iq: bool = False, progress=None, synthesis: str = "auto", iq_transform=None,
              noise_seed: int | None = None, **backend_options) -> SimulationResult:
-    """Run `motion` through a scattering backend and the shared synthesiser/DSP for every link of `radar`.
+    """Run `motion` through a scattering backend and the shared synthesiser/DSP for every link of `radar`:
+    `synthesise(trace(...))`.
 
     Args:
         motion: the pose sequence (`rtchannel.Motion`, e.g. `Motion.procedural("walk")`).
@@ -174,22 +267,9 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
     """
     radar = RadarConfig() if radar is None else radar
     check_recording(motion.duration, radar.waveform, radar.dsp, len(radar.links), keep_iq)
-    if scene is not None:
-        if backend in MESH_BACKENDS:
-            backend_options["scene"] = scene
-        elif str(scene) != "free_space":
-            warnings.warn(f"the {backend} backend is a free-space model: scene '{scene}' is not used",
-                          stacklevel=2)
-    timing: dict[str, float] = {}
-    t0 = time.perf_counter()
-    paths = backend_paths(motion, radar, backend, **backend_options)
-    timing["backend"] = time.perf_counter() - t0
-    if noise_seed is None:
-        noise_seed = int(motion.params.get("seed", 0) or 0)
-    links = process_paths(paths, radar, keep_iq=keep_iq, progress=progress, timing=timing, synthesis=synthesis,
-                          iq_transform=iq_transform, noise_seed=noise_seed)
-    config = _config(motion, radar, backend, _described(backend_options), synthesis, noise_seed)
-    return SimulationResult(links=links, timing=timing, config=config)
+    channel = trace(motion, radar, backend, scene=scene, **backend_options)
+    return synthesise(channel, keep_iq=keep_iq, progress=progress, synthesis=synthesis,
+                      iq_transform=iq_transform, noise_seed=noise_seed)
 
 
 def union_radar(radars) -> RadarConfig:
@@ -238,14 +318,14 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
     t0 = time.perf_counter()
     paths = backend_paths(motion, union, backend, **backend_options)
     shared = (time.perf_counter() - t0) / n
-    options = _described(backend_options)
+    traced = _traced(motion, backend, backend_options)
     results = []
     for i, r in enumerate(radars):
         mine = {lk.name: replace(paths[f"r{i}__{lk.name}"], link=lk.name) for lk in r.links}
-        seed = int(motion.params.get("seed", 0) or 0) if noise_seeds[i] is None else noise_seeds[i]
+        seed = _motion_seed(motion.params) if noise_seeds[i] is None else noise_seeds[i]
         timing = {"backend": shared}
         links = process_paths(mine, r, keep_iq=keep_iq, timing=timing, synthesis=synthesis,
                               iq_transform=iq_transforms[i], noise_seed=seed)
-        config = {**_config(motion, r, backend, options, synthesis, seed), "traced_with_radars": n}
+        config = {**_config(traced, r, synthesis, seed), "traced_with_radars": n}
         results.append(SimulationResult(links=links, timing=timing, config=config))
     return results

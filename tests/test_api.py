@@ -81,3 +81,31 @@ def test_walk_centring_follows_heading():
     # centred on the origin along +y: starts near y = -1.5 m, ends near y = +1.5 m (+ the last stride)
     assert abs(hips[0, 1] + 1.5) < 1e-9 and abs(hips[0, 0]) < 1e-9
     assert 1.2 < hips[-1, 1] < 2.5 and abs(hips[-1, 0]) < 0.1
+
+
+def test_trace_then_synthesise_is_simulate_and_keeps_the_channel():
+    import numpy as np
+
+    from processing.errors import InputError
+    from rtchannel import PathSets, Radar, trace, synthesise
+
+    motion = Motion.procedural("fall", height=1.7, seed=3)
+    radar = Radar.seed(direction=1)
+    channel = trace(motion, radar, backend="points")
+    assert isinstance(channel, PathSets) and set(channel) == {lk.name for lk in radar.links}
+    assert channel["radar1"].delays.shape[0] == motion.n_frames  # one row of delays per animation frame
+    a, b = simulate(motion, radar, backend="points"), synthesise(channel)
+    for name in a.signatures:
+        assert np.array_equal(a.signatures[name].p_vt, b.signatures[name].p_vt)
+    assert a.config == b.config
+    moved = Radar.seed(direction=2)  # other antenna positions: the channel does not hold them
+    with pytest.raises(InputError, match="trace again"):
+        synthesise(channel, moved)
+
+
+def test_activities_have_one_home():
+    from processing.io import dataset_store
+    from processing.labels import ACTIVITIES
+    from rtchannel.motion import activities, procedural
+
+    assert dataset_store.ACTIVITIES is ACTIVITIES is activities.ACTIVITIES is procedural.ACTIVITIES

@@ -13,8 +13,9 @@ Measured (24.125 GHz, radar 3 m away; see rtchannel/backends/rcs.py for the clos
 import numpy as np
 import pytest
 
-from rtchannel.backends.rcs import (PEC, lambertian_sphere_rcs, monostatic_rcs, plate_mesh, plate_po_rcs,
-                                    sionna_backend, sphere_mesh)
+from processing.radar.propagation import lambertian_sphere_rcs, plate_po_rcs
+from processing.radar.waveform import C0
+from rtchannel.backends.rcs import PEC, monostatic_rcs, plate_mesh, sionna_backend, sphere_mesh
 from rtchannel.scene.rt_scene import SkinMaterial
 
 LAMBERT_PEC = SkinMaterial(relative_permittivity=1.0, conductivity=1e8, scattering_coefficient=1.0)
@@ -30,7 +31,7 @@ def test_plate_specular_is_a_mirror_image():
         # the same for both sizes, unlike physical optics (a factor 16 between them).
         assert r["n_paths"] == 1
         assert r["sigma"] == pytest.approx(np.pi * R ** 2, rel=1e-3)
-        assert abs(np.log10(r["sigma"] / plate_po_rcs(side ** 2))) > 0.5
+        assert abs(np.log10(r["sigma"] / plate_po_rcs(side ** 2, C0 / 24.125e9))) > 0.5
 
 
 def test_plate_lambertian_broadside():

@@ -13,9 +13,10 @@ import pytest
 from processing.radar.waveform import C0
 from rtchannel.backends.facets import LinkSpec, mesh_paths
 from rtchannel.backends.rcs import plate_mesh, sphere_mesh
-from rtchannel.backends.surface_scattering import (SurfaceMaterial, diffuse_plate_rcs, diffuse_sphere_rcs,
-                                                   optical_sphere_rcs, po_plate_rcs, rcs_amplitude,
-                                                   triangle_phase_integral)
+from processing.radar.propagation import (lambertian_plate_rcs as diffuse_plate_rcs,
+                                          lambertian_sphere_rcs as diffuse_sphere_rcs, optical_sphere_rcs,
+                                          path_amplitude as rcs_amplitude, plate_po_rcs as po_plate_rcs)
+from rtchannel.backends.surface_scattering import SurfaceMaterial, triangle_phase_integral
 from rtchannel.scene.rt_scene import RTScene
 
 F0 = 24.125e9
@@ -155,3 +156,19 @@ def test_compiled_po_gains_match_the_reference_maths(mat):
     # Same maths; the compiled integral uses exp[jp, jq] = exp(j (p + q) / 2) sinc((q - p) / 2), whose
     # rounding differs by ~1e-16 x the largest phase (~30 rad here) relative to the facet's area.
     np.testing.assert_allclose(got, ref, rtol=1e-11, atol=1e-12 * np.abs(ref).max())
+
+
+def test_propagation_formulas_have_one_home_and_read_back():
+    """The radar equation's path coefficient and its read-back are inverses; the points backend and the
+    compiled facets kernels use the same constant (one home: processing.radar.propagation)."""
+    from processing.radar import propagation
+    from rtchannel.backends import facet_kernels, points
+
+    sigma, r1, r2 = 0.49, 2.7, 3.4
+    a = propagation.path_amplitude(sigma, r1, r2, LAM)
+    assert propagation.rcs_from_amplitude(a, r1, r2, LAM) == pytest.approx(sigma, rel=1e-12)
+    assert propagation.received_power_ratio(sigma, r1, r2, LAM, 10.0, 2.0) == pytest.approx(20 * a ** 2, rel=1e-12)
+    assert facet_kernels.FOUR_PI_1_5 is propagation.FOUR_PI_1_5
+    pts = np.array([[[1.0, 2.0, 1.0]]])
+    assert points.link_delays(pts, np.zeros(3), np.array([3.0, 0, 1.1]))[0, 0] == pytest.approx(
+        (np.sqrt(6) + np.sqrt(4 + 4 + 0.01)) / 299792458.0, rel=1e-14)

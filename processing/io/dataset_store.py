@@ -35,9 +35,9 @@ import h5py
 import numpy as np
 
 from processing.atomic import atomic_path, write_text_atomic
+from processing.labels import ACTIVITIES  # noqa: F401 - class order = label index; re-exported
 from processing.errors import DatasetFormatError, InputError, one_line
 
-ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")  # class order = label index
 SHARD_FORMAT = "rtchannel-dataset-shard/1"
 SIGNATURE_ARRAYS = ("p_vt", "velocity", "time", "mean_velocity", "range_distribution", "range", "valid", "power")
 INDEX, ERRORS, PLAN, SHARDS = "index.jsonl", "errors.jsonl", "plan.json", "shards"

@@ -48,6 +48,7 @@ from collections.abc import Sequence
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from processing.radar.propagation import received_power_ratio
 from processing.radar.antenna import AntennaPattern, GaussianBeam, YagiBeam
 from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
@@ -221,15 +222,9 @@ def processing_gain_db(n_samples: int, n_chirps: int, range_window: str = "boxca
 def received_power_w(cfg: ReceiverConfig, rcs_m2: float, r_tx_m: float, r_rx_m: float, wavelength_m: float,
                      gain_tx_dbi: float = 0.0, gain_rx_dbi: float = 0.0) -> float:
     """Radar equation at the ADC: P_t G_tx G_rx lambda^2 sigma / ((4 pi)^3 R_tx^2 R_rx^2) x G_chain [W]."""
-    g = 10.0 ** ((gain_tx_dbi + gain_rx_dbi + cfg.chain_gain_db) / 10.0)
-    return transmit_power_w(cfg) * g * wavelength_m ** 2 * rcs_m2 / ((4 * np.pi) ** 3 * r_tx_m ** 2 * r_rx_m ** 2)
-
-
-def point_target_snr_db(cfg: ReceiverConfig, fs: float, rcs_m2: float, range_m: float, wavelength_m: float,
-                        gain_dbi: float = 0.0) -> float:
-    """SNR [dB] per complex sample of a monostatic point target on boresight of antennas of `gain_dbi`."""
-    p = received_power_w(cfg, rcs_m2, range_m, range_m, wavelength_m, gain_dbi, gain_dbi)
-    return 10 * math.log10(p / noise_power_per_sample(cfg, fs))
+    g_tx, g_rx = 10.0 ** (gain_tx_dbi / 10.0), 10.0 ** (gain_rx_dbi / 10.0)
+    ratio = received_power_ratio(rcs_m2, r_tx_m, r_rx_m, wavelength_m, g_tx, g_rx)
+    return transmit_power_w(cfg) * 10.0 ** (cfg.chain_gain_db / 10.0) * float(ratio)
 
 
 # Presets. No Ancortek data sheet was found in the sources searched, so each value says where it comes from

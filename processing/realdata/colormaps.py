@@ -16,7 +16,6 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import cKDTree
 
-MATLAB_PREFIX = "matlab_"
 
 
 def matlab_jet(m: int = 256) -> np.ndarray:

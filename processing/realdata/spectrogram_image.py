@@ -127,7 +127,6 @@ GLASGOW_FRAME = {"top": 36, "bottom": 354, "left": 64}
 GLASGOW_FRAME_RIGHT = {5.0: 448, 10.0: 442}
 GLASGOW_FRAME_RGB = (38, 38, 38)
 GLASGOW_V_LIMIT = 6.0
-GLASGOW_DURATION = {"walk": 10.0}  # all other activities 5 s (one sit-down, 2P36A02R01, is 10 s)
 
 
 def glasgow_layout(duration_s: float = 5.0) -> ImageLayout:

@@ -148,14 +148,6 @@ def write_spectrogram_image(path: str | Path, velocity: np.ndarray, time: np.nda
     return path
 
 
-def write_signature_image(path: str | Path, sig: Signature, layout: ImageLayout, **kwargs) -> Path:
-    """Write a `Signature`'s spectrogram: p(v,t) times the column power when the signature has it (so
-    quiet and loud moments keep their relative level, as in a radar's spectrogram), else p(v,t)."""
-    p = np.asarray(sig.p_vt, dtype=np.float64)
-    power = p * sig.power[None, :] if np.size(sig.power) == p.shape[1] else p
-    return write_spectrogram_image(path, sig.velocity, sig.time, layout, power=power, **kwargs)
-
-
 def through_image(sig: Signature, layout: ImageLayout, duration_s: float | None = None) -> Signature:
     """`sig` as an image in `layout` shows it: drawn (`render_box`: cells to pixels, 8-bit colour, the
     layout's dB span below the strongest cell, quieter cells at the bottom colour) and read back with

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-FOUR_PI_1_5 = (4 * np.pi) ** 1.5
+from processing.radar.propagation import FOUR_PI_1_5  # the radar equation's home (a numba global)
 
 
 def lambertian_po_gains(c, n, area, corners, p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po):

@@ -357,19 +357,3 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
                       image_mesh, seed, double_bounce)
 
 
-def rcs_backend(skin=None, po: bool = True, seed: int | None = 0):
-    """A `rtchannel.backends.rcs.BackendFn` for static calibration targets in free space: facets of the
-    mesh with `skin` (an `rtchannel.scene.rt_scene.SkinMaterial`, e.g. `rcs.PEC`; default dry skin) as
-    material, diffuse plus (if `po`) physical optics. Gains are in the synthesiser's convention, so
-    coherent sums must use exp(+j 2 pi f tau)."""
-    from rtchannel.scene.rt_scene import RTScene
-
-    def run(vertices, faces, radar):
-        wf = radar.waveform
-        scene = RTScene("free_space", faces, vertices, wf.carrier_hz, skin, sionna=False)
-        links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
-        v = np.stack([vertices, vertices])
-        return mesh_paths(scene, np.array([0.0, 0.1]), v, faces, None, links, wf.wavelength,
-                          SurfaceMaterial.from_skin(scene.skin, wf.carrier_hz), po=po, seed=seed)
-
-    return run

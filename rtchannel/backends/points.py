@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from processing.pathset import PathSet
-from processing.radar.waveform import C0
+from processing.radar.propagation import bistatic_delay, path_amplitude
 from rtchannel.radar import RadarConfig
 from rtchannel.body.scatterers import PointScatterers, seed_scatterers
 from rtchannel.motion.pose import Motion
@@ -25,7 +25,7 @@ from rtchannel.errors import RadarPlacementError
 
 def link_delays(points: np.ndarray, tx: np.ndarray, rx: np.ndarray) -> np.ndarray:
     """Delays [F, M] in seconds of point trajectories [F, M, 3] (m) for one tx/rx pair (m)."""
-    return (np.linalg.norm(points - tx, axis=-1) + np.linalg.norm(points - rx, axis=-1)) / C0
+    return bistatic_delay(points, tx, rx)
 
 
 def scatterer_trajectories(motion: Motion, scatterers: PointScatterers | None = None) -> np.ndarray:
@@ -47,12 +47,6 @@ BODY_RCS_M2 = 0.49
 # chest's depth; limbs 0.04-0.07 m). An antenna nearer than this to any of them is inside or touching the
 # body, where the point model (and its 1/r^2 amplitude) means nothing.
 MIN_SCATTERER_CLEARANCE_M = 0.15
-
-
-def radar_amplitude(sigma, r_tx, r_rx, wavelength: float):
-    """Path coefficient a (|a|^2 = P_r/P_t, isotropic unit-gain antennas) of a target of RCS sigma [m^2]
-    at distances r_tx, r_rx [m] from transmitter and receiver: lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx)."""
-    return wavelength * np.sqrt(sigma) / ((4 * np.pi) ** 1.5 * np.asarray(r_tx) * np.asarray(r_rx))
 
 
 def _check_clearance(traj: np.ndarray, times: np.ndarray, link) -> None:
@@ -97,10 +91,10 @@ def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = N
         _check_clearance(traj, motion.times, link)
         r_tx = np.linalg.norm(traj - link.tx_pos, axis=-1)
         r_rx = np.linalg.norm(traj - link.rx_pos, axis=-1)
-        tau = (r_tx + r_rx) / C0
+        tau = link_delays(traj, link.tx_pos, link.rx_pos)
         gain = np.broadcast_to(g, tau.shape).copy()
         if scale == "radar":
-            gain = gain * radar_amplitude(body_rcs_m2, r_tx, r_rx, radar.waveform.wavelength)
+            gain = gain * path_amplitude(body_rcs_m2, r_tx, r_rx, radar.waveform.wavelength)
             gain = gain * radar.link_gain(link, traj)
         out[link.name] = PathSet(times=motion.times, delays=tau, gains=gain, ids=np.arange(traj.shape[1]),
                                  link=link.name)

@@ -32,6 +32,7 @@ import numpy as np
 
 from processing.radar.antenna import Isotropic
 from processing.pathset import PathSet
+from processing.radar.propagation import FOUR_PI_1_5
 from processing.radar.waveform import C0
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import RTScene, SkinMaterial
@@ -92,7 +93,7 @@ def frame_rcs(ps: PathSet, frequency_hz: float) -> tuple[np.ndarray, np.ndarray]
     lam = C0 / frequency_hz
     on = ps.gains != 0
     tau = np.where(on, ps.delays, 0.0)
-    root_sigma = ps.gains * (C0 * tau / 2) ** 2 * (4 * np.pi) ** 1.5 / lam  # sqrt(sigma_p) up to phase
+    root_sigma = ps.gains * (C0 * tau / 2) ** 2 * FOUR_PI_1_5 / lam  # sqrt(sigma_p) up to phase
     s = np.where(on, root_sigma * np.exp(2j * np.pi * frequency_hz * tau), 0)
     return np.abs(s.sum(axis=1)) ** 2, np.sum(np.abs(s) ** 2, axis=1)
 
@@ -155,18 +156,7 @@ def sionna_backend(material: SkinMaterial = PEC, **options) -> BackendFn:
     return run
 
 
-def lambertian_sphere_rcs(radius: float, scattering_coefficient: float = 1.0, reflection: float = 1.0) -> float:
-    """Monostatic RCS [m^2] of a Lambertian sphere: (8 pi / 3) S^2 |G|^2 a^2."""
-    return 8 * np.pi / 3 * scattering_coefficient ** 2 * reflection ** 2 * radius ** 2
-
-
-def plate_po_rcs(area: float, frequency_hz: float = 24.125e9) -> float:
-    """Broadside physical-optics RCS [m^2] of a flat plate: 4 pi A^2 / lambda^2."""
-    return 4 * np.pi * area ** 2 / (C0 / frequency_hz) ** 2
-
-
-__all__ = ["monostatic_rcs", "sionna_backend", "sphere_mesh", "plate_mesh", "lambertian_sphere_rcs",
-           "plate_po_rcs", "PEC", "BackendFn", "frame_rcs", "walk_body_rcs"]
+__all__ = ["monostatic_rcs", "sionna_backend", "sphere_mesh", "plate_mesh", "PEC", "BackendFn", "frame_rcs", "walk_body_rcs"]
 
 
 def _db(x: float) -> str:

@@ -6,7 +6,7 @@ units; the Lambertian diffuse + PO gains and the wall factors run through their 
 Common scale (Sionna RT's path-coefficient convention, isotropic unit-gain antennas): a path with
 radar cross-section sigma at distances r_tx, r_rx has |a|^2 = P_r / P_t, i.e.
 
-    |a| = lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx)                         (`rcs_amplitude`)
+    |a| = lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx)                         (`processing.radar.propagation.path_amplitude`)
 
 Diffuse model (Sionna RT EM primer, "Scattering", after Degli-Esposti 2007/2011): the field scattered by
 a surface element dA towards k_s is |E_s| = S Gamma sqrt(f_s(k_i, k_s) cos(theta_i) dA) |E_i| / r_s,
@@ -17,7 +17,7 @@ isotropic receiver this is a radar cross-section per element
     sigma_d = 4 pi S^2 Gamma^2 f_s cos(theta_i) dA       (Lambertian: 4 S^2 Gamma^2 cos(theta_i) cos(theta_s) dA)
 
 whose amplitude is real and positive (Sionna's diffuse Jones matrix has no phase besides propagation).
-Summed in power over a body this gives the closed forms `diffuse_sphere_rcs` and `diffuse_plate_rcs`.
+Summed in power over a body this gives the closed forms `lambertian_sphere_rcs` and `lambertian_plate_rcs` (`processing.radar.propagation`).
 The diffuse model defines a power, not a phase: a rough surface's diffuse field has a random phase per
 resolution cell, so `facet_gains` multiplies each element's diffuse amplitude by a fixed random phase
 factor (`diffuse_phases`); the expected coherent power of a sum of elements is then its power sum, the
@@ -51,9 +51,9 @@ from math import comb
 import numpy as np
 from scipy.constants import epsilon_0
 
+from processing.radar.propagation import FOUR_PI_1_5, path_amplitude  # noqa: F401 - the radar equation's home
 from rtchannel.backends import facet_kernels
 
-FOUR_PI_1_5 = facet_kernels.FOUR_PI_1_5
 
 
 @dataclass(frozen=True)
@@ -86,12 +86,6 @@ class SurfaceMaterial:
                    pattern=skin.scattering_pattern, alpha_r=int(skin.alpha_r), alpha_i=int(skin.alpha_i),
                    lambda_=float(skin.lambda_), xpd_coefficient=float(skin.xpd_coefficient),
                    thickness=float(skin.thickness) if skin.thickness else None)
-
-
-def rcs_amplitude(sigma, r_tx, r_rx, wavelength: float):
-    """Path amplitude |a| = lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx) of a target with RCS sigma [m^2]
-    at distances r_tx, r_rx [m] (isotropic unit-gain antennas; |a|^2 = P_r / P_t)."""
-    return wavelength * np.sqrt(sigma) / (FOUR_PI_1_5 * np.asarray(r_tx) * np.asarray(r_rx))
 
 
 def fresnel(cos_i, eta: complex | None):
@@ -252,28 +246,6 @@ def wall_factor(wall, cos_w, k_in, wavelength):
                                       getattr(wall, "thickness", None) or 0.0, wavelength)
 
 
-def diffuse_sphere_rcs(radius: float, scattering_coefficient: float, gamma: float = 1.0) -> float:
-    """Monostatic RCS [m^2] of a sphere under the Lambertian diffuse model, summed in power:
-    integral of 4 S^2 Gamma^2 cos^2(theta) dA over the lit hemisphere = (8 pi / 3) S^2 Gamma^2 a^2."""
-    return 8 * np.pi / 3 * scattering_coefficient ** 2 * gamma ** 2 * radius ** 2
-
-
-def diffuse_plate_rcs(area: float, scattering_coefficient: float, gamma: float = 1.0, cos_theta: float = 1.0) -> float:
-    """Monostatic RCS [m^2] of a flat plate under the Lambertian diffuse model, summed in power:
-    4 S^2 Gamma^2 cos^2(theta) A."""
-    return 4 * scattering_coefficient ** 2 * gamma ** 2 * cos_theta ** 2 * area
-
-
-def po_plate_rcs(area: float, wavelength: float) -> float:
-    """Broadside monostatic RCS [m^2] of a perfectly conducting flat plate: 4 pi A^2 / lambda^2."""
-    return 4 * np.pi * area ** 2 / wavelength ** 2
-
-
-def optical_sphere_rcs(radius: float) -> float:
-    """Optical-region RCS [m^2] of a perfectly conducting sphere: pi a^2."""
-    return np.pi * radius ** 2
-
-
 def diffuse_phases(seed: int | None, n_facets: int) -> np.ndarray | None:
     """Fixed random phase factors exp(j phi_f) [n_facets] of the diffuse field of each facet (None: no
     random phase, every diffuse gain real and positive).
@@ -339,7 +311,7 @@ def facet_gains_indexed(mat: SurfaceMaterial, wavelength: float, cent, norm, are
 def lambertian_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, p_a, p_b) -> np.ndarray:
     """Real path gains [E] of surface elements (centroids c [E, 3], normals, areas [E]) on p_a -> c -> p_b
     (points [E, 3]) under the Lambertian diffuse model: the fused, compiled equivalent of
-    `rcs_amplitude` applied to `diffuse_sqrt_rcs`."""
+    `path_amplitude` applied to `diffuse_sqrt_rcs`."""
     return _compiled_gains(mat, wavelength, c, n, area, None, p_a, p_b, False)[0]
 
 

@@ -1,6 +1,6 @@
-"""The activity names, in a module without dependencies: the CLI's argument parser reads them before any
-command runs, and importing `rtchannel.motion.procedural` for them would load scipy.interpolate."""
+"""The activity names the motion generators and importers accept: `processing.labels.ACTIVITIES` (their
+order is the class-label order), re-exported without dependencies for the CLI's argument parser."""
 
-ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")
+from processing.labels import ACTIVITIES
 
 __all__ = ["ACTIVITIES"]

@@ -39,7 +39,6 @@ JOINT_INDEX = {n: i for i, n in enumerate(JOINT_NAMES)}
 _BLENDER_TO_PROJECT = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 SOLE_OFFSET_M = 0.81676  # lowest skin vertex of the body group in Blender z [m]
 REST_HEIGHT_M = 1.66589  # soles to top of the head of the rest mesh [m]
-HEAD_TOP_ABOVE_HEAD_JOINT_M = 0.849 - 0.697  # skin top above the Head joint in the rest pose [m]
 
 
 @dataclass(frozen=True)

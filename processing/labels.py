@@ -1,0 +1,7 @@
+"""The activity classes, in label order (class index = position), the one home of this list: the dataset
+store labels items with it, the classifier's outputs follow it, and the motion generators use its names.
+Dependency-free, so the CLI's parser can read it before any command runs."""
+
+ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")
+
+__all__ = ["ACTIVITIES"]
