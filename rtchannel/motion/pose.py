@@ -17,9 +17,6 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy import sparse
-from scipy.interpolate import CubicSpline
-from scipy.spatial.transform import Rotation, Slerp
 
 from rtchannel.assets import avatar_dir
 from rtchannel.errors import ConfigError
@@ -204,6 +201,9 @@ class Motion:
         t_old = self.times
         n_new = check_resampled_frames(self.duration, fps)
         t_new = np.arange(n_new) / fps
+        from scipy.interpolate import CubicSpline  # here: the CLI's parser imports this module
+        from scipy.spatial.transform import Rotation, Slerp
+
         pos = CubicSpline(t_old, self.positions, axis=0)(t_new)
         rot = np.empty((n_new, self.rig.n_joints, 3, 3))
         for j in range(self.rig.n_joints):
@@ -213,6 +213,8 @@ class Motion:
 
     def transformed(self, yaw_rad: float = 0.0, offset=(0.0, 0.0, 0.0)) -> "Motion":
         """The motion rotated by `yaw_rad` about the vertical through the origin, then shifted by `offset` (m)."""
+        from scipy.spatial.transform import Rotation
+
         rz = Rotation.from_euler("z", yaw_rad).as_matrix()
         pos = self.positions @ rz.T + np.asarray(offset, dtype=float)
         rot = np.einsum("ab,fjbc->fjac", rz, self.rotations)
@@ -245,7 +247,7 @@ def forward_kinematics(rig: Rig, local_rotations: np.ndarray, root_positions: np
     return rot, pos
 
 
-def blend_points(weights: sparse.spmatrix, rest: np.ndarray, mats: np.ndarray) -> np.ndarray:
+def blend_points(weights, rest: np.ndarray, mats: np.ndarray) -> np.ndarray:
     """Apply blended affine transforms to points.
 
     Args:
@@ -258,6 +260,8 @@ def blend_points(weights: sparse.spmatrix, rest: np.ndarray, mats: np.ndarray) -
     """
     f, j = mats.shape[:2]
     p = rest.shape[0]
+    from scipy import sparse
+
     w = sparse.csr_matrix(weights)
     xh = np.concatenate([rest, np.ones((p, 1))], axis=1)
     out = np.empty((f, p, 3))
