@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
 ACTIVITIES := walk fall sit stand pick
 
-.PHONY: demo test env llvm bench clean
+.PHONY: demo test env llvm bench docs wheel-check clean
 
 demo: env
 	@for a in $(ACTIVITIES); do \
@@ -20,6 +20,14 @@ test: env
 
 bench: env
 	$(BIN)/python benchmarks/bench_points.py
+
+# API reference (pdoc) into docs/api/ (not committed; CI builds it so a broken docstring or import shows)
+docs: env
+	$(BIN)/pdoc -o docs/api rtchannel processing
+
+# a regular (non-editable) install into a fresh venv, run from an empty folder
+wheel-check: llvm
+	PYTHON=$(PYTHON) bash scripts/check_wheel.sh
 
 env: llvm $(STAMP)
 

@@ -1,14 +1,10 @@
 """`rtchannel train / evaluate / crossval`: the multiperspective DCNN activity classifier on datasets and recordings.
 
-A dataset is named by a *spec*: ``DIR`` or ``DIR:FILTER`` where FILTER is comma-separated conditions on
-index entries, ``key=v1|v2`` (any of), ``key!=v1|v2`` (none of) or ``key~text`` (substring); keys may be
-dotted into `params` (``params.motion.kind=file``); numbers compare numerically.
-Example: ``out/seed:direction=1|3|5|7|9|11|13|15|17,backend=points``.
+Datasets are named by specs of the query language in `processing.io.dataset_query` (``DIR[:key=v1|v2,...]``).
 """
 from __future__ import annotations
 
 import json
-import re
 import time
 from pathlib import Path
 
@@ -16,75 +12,14 @@ import numpy as np
 
 from rtchannel.cli.common import check_output, positive_int
 
-_COND = re.compile(r"^\s*([A-Za-z0-9_.]+)\s*(!=|=|~)\s*(.*?)\s*$")
+# the dataset query language lives in the library (usable from the API); re-exported for the commands
+from processing.io.dataset_query import open_spec, parse_spec, select  # noqa: E402,F401
 
 
 def _user_error():
     from rtchannel.cli.common import UserError
 
     return UserError
-
-
-def parse_spec(spec: str) -> tuple[Path, list[tuple[str, str, list[str]]]]:
-    """(dataset folder, [(key, op, values)]) of ``DIR[:key=v1|v2,key!=v,key~text]``."""
-    path, conds = spec, []
-    head, sep, tail = spec.rpartition(":")
-    if sep and head and re.search(r"(!=|=|~)", tail):
-        path = head
-        for part in filter(None, (p.strip() for p in tail.split(","))):
-            m = _COND.match(part)
-            if not m:
-                raise _user_error()(f"bad filter condition {part!r} in {spec!r} (use key=v1|v2, key!=v or key~text)")
-            conds.append((m.group(1), m.group(2), m.group(3).split("|")))
-    return Path(path), conds
-
-
-def _lookup(entry: dict, key: str):
-    v = entry
-    for k in key.split("."):
-        if not isinstance(v, dict) or k not in v:
-            return None
-        v = v[k]
-    return v
-
-
-def _equal(value, text: str) -> bool:
-    if value is None:
-        return text.lower() in ("none", "null", "")
-    try:
-        return abs(float(value) - float(text)) < 1e-9
-    except (TypeError, ValueError):
-        return str(value).lower() == text.lower()
-
-
-def select(reader, conds) -> list[int]:
-    """Indices of `reader.entries` meeting every condition of a parsed spec."""
-    def ok(e):
-        for key, op, vals in conds:
-            v = _lookup(e, key)
-            if op == "~" and not any(t.lower() in str(v).lower() for t in vals):
-                return False
-            if op == "=" and not any(_equal(v, t) for t in vals):
-                return False
-            if op == "!=" and any(_equal(v, t) for t in vals):
-                return False
-        return True
-    return [i for i, e in enumerate(reader.entries) if ok(e)]
-
-
-def open_spec(spec: str):
-    """(DatasetReader, selected indices) of a dataset spec; UserError if missing or empty."""
-    from processing.io.dataset_store import DatasetReader
-
-    path, conds = parse_spec(spec)
-    try:
-        reader = DatasetReader(path)
-    except FileNotFoundError as e:
-        raise _user_error()(str(e)) from None
-    idx = select(reader, conds)
-    if not idx:
-        raise _user_error()(f"no dataset entries match {spec!r} ({len(reader)} entries in {path})")
-    return reader, idx
 
 
 def _add_preprocess_model_args(p) -> None:
