@@ -50,7 +50,15 @@ class SimulationResult:
 
     def save(self, path: str | Path, seed: int | None = None) -> Path:
         """Write `signature.h5` (DESIGN.md layout, atomically) with the parameters that made it; the raw IQ
-        is stored for links that kept it. Returns the path."""
+        is stored for links that kept it.
+
+        Args:
+            path: the file to write.
+            seed: the root attribute ``seed`` (default: the motion's seed).
+
+        Returns:
+            `path`.
+        """
         from processing.io.signature_file import write_signature_file
 
         cfg = self.config
@@ -67,7 +75,12 @@ class SimulationResult:
             iq=self.iq or None)
 
     def plot(self, out_dir: str | Path, title: str | None = None) -> list[Path]:
-        """PNG figures (p(v,t), mean velocity, range-time) into `out_dir`; returns their paths."""
+        """PNG figures (p(v,t), mean velocity, range-time) into `out_dir`; returns their paths.
+
+        Args:
+            out_dir: folder to write into.
+            title: figure title (default: activity, backend and radar orientation).
+        """
         from processing.plots.signatures import plot_all
 
         if title is None:
@@ -298,9 +311,17 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
     `simulate(motion, radars[i], ..., noise_seed=noise_seeds[i], iq_transform=iq_transforms[i])`.
 
     Args:
+        motion: the pose sequence.
         radars: RadarConfigs sharing one waveform (their DSP, receivers and antennas may differ).
+        backend: "points", "facets" or "sionna".
+        scene: mesh backends only: as `simulate`.
+        keep_iq: keep every link's raw IQ [chirps, samples].
+        synthesis: "auto", "exact" or "grid".
         iq_transforms, noise_seeds: one per radar (default None / the motion's seed).
-        Others: as `simulate`. The shared backend time is split evenly over the results' ``timing``.
+        **backend_options: the backend's options, as `simulate`.
+
+    Returns:
+        One `SimulationResult` per radar; the shared backend time is split evenly over their ``timing``.
     """
     radars = list(radars)
     if not radars:

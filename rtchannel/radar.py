@@ -120,7 +120,13 @@ class RadarConfig(BaseModel):
 
     @classmethod
     def monostatic(cls, position, name: str = "radar1", **overrides) -> "RadarConfig":
-        """One monostatic radar at `position` [3] (m), seed waveform and DSP unless overridden."""
+        """One monostatic radar at `position` [3] (m), seed waveform and DSP unless overridden.
+
+        Args:
+            position: antenna position (x, y, z) [m].
+            name: the link's name.
+            **overrides: RadarConfig fields to replace (waveform, dsp, receiver, ...).
+        """
         return cls(links=[Link(name=name, tx=tuple(float(x) for x in position))], **overrides)
 
     @classmethod
@@ -154,7 +160,7 @@ class RadarConfig(BaseModel):
 
     @classmethod
     def from_file(cls, path: str | Path) -> "RadarConfig":
-        """Load from YAML or JSON; raises pydantic's ValidationError naming a bad field, or
+        """Load from the YAML or JSON file `path`; raises pydantic's ValidationError naming a bad field, or
         `rtchannel.errors.ConfigError` (one line naming the file and line) for syntax errors, alias bombs and
         non-mappings (`rtchannel.safe_yaml`)."""
         from rtchannel.safe_yaml import read_yaml_mapping
@@ -183,7 +189,7 @@ class RadarConfig(BaseModel):
         return (link.tx_antenna or self.antenna, link.rx_antenna or self.antenna)
 
     def link_gain(self, link: Link, tx_targets: np.ndarray, rx_targets: np.ndarray | None = None) -> np.ndarray:
-        """Antenna amplitude factor sqrt(G_tx G_rx) [...] of paths leaving the transmitter towards
+        """Antenna amplitude factor sqrt(G_tx G_rx) [...] of paths of `link` leaving the transmitter towards
         `tx_targets` [..., 3] (m) and reaching the receiver from `rx_targets` (default the same points)."""
         from processing.radar.antenna import link_gain
 

@@ -69,7 +69,14 @@ def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, 
 
 
 def read_signature_file(path: str | Path) -> tuple[dict, dict[str, Signature]]:
-    """(root attributes with `config` parsed, {link: Signature}) of a `signature.h5`."""
+    """Read a `signature.h5` (DESIGN.md layout) written by `write_signature_file` / `SimulationResult.save`.
+
+    Args:
+        path: the file.
+
+    Returns:
+        (root attributes with `config` parsed from JSON, {link name: Signature}).
+    """
     with h5py.File(path, "r") as f:
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
         attrs["config"] = json.loads(attrs.get("config", "{}"))

@@ -72,7 +72,16 @@ def _save(fig, path: Path, title: str) -> Path:
 
 def plot_pvt(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
     """Micro-Doppler spectrogram p(v,t) x window power of every link (dB re the recording's strongest cell,
-    40 dB range) with the mean radial velocity (eq. 8) over the windows that carry signal."""
+    40 dB range) with the mean radial velocity (eq. 8) over the windows that carry signal.
+
+    Args:
+        sigs: {link name: Signature} to draw, one panel per link.
+        path: PNG file to write.
+        title: figure title (default none).
+
+    Returns:
+        `path`.
+    """
     fig = _figure(5.2 * len(sigs) + 0.9, 4)
     _margins(fig, left=0.75, right=1.2, bottom=0.5, top=0.6, wspace=0.8, ncols=len(sigs))
     axes = fig.subplots(1, len(sigs), squeeze=False)
@@ -90,7 +99,16 @@ def plot_pvt(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
 
 
 def plot_mean_velocity(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
-    """Mean radial velocity (seed eq. 8) of every link against time."""
+    """Mean radial velocity [m/s] (seed eq. 8) of every link against time [s].
+
+    Args:
+        sigs: {link name: Signature} to draw, one curve per link.
+        path: PNG file to write.
+        title: figure title (default none).
+
+    Returns:
+        `path`.
+    """
     fig = _figure(7, 3.5)
     _margins(fig, left=0.7, right=0.15, bottom=0.5, top=0.35)
     ax = fig.subplots()
@@ -104,7 +122,16 @@ def plot_mean_velocity(sigs: dict[str, Signature], path: Path, title: str = "") 
 
 
 def plot_range(sigs: dict[str, Signature], path: Path, title: str = "") -> Path:
-    """Range-time map: the range distribution p'(r,t) (seed eq. 10) x window power, dB re max, 40 dB."""
+    """Range-time map: the range distribution p'(r,t) (seed eq. 10) x window power, dB re max, 40 dB.
+
+    Args:
+        sigs: {link name: Signature} to draw, one panel per link.
+        path: PNG file to write.
+        title: figure title (default none).
+
+    Returns:
+        `path`.
+    """
     fig = _figure(5.2 * len(sigs) + 0.9, 4)
     _margins(fig, left=0.6, right=1.2, bottom=0.5, top=0.6, wspace=0.6, ncols=len(sigs))
     axes = fig.subplots(1, len(sigs), squeeze=False)
@@ -161,7 +188,16 @@ def plot_range_doppler(sigs: dict[str, Signature], path: Path, title: str = "", 
 
 def plot_all(sigs: dict[str, Signature], out_dir: Path, title: str = "") -> list[Path]:
     """All figures into `out_dir`: pvt.png, mean_velocity.png, range.png and (when the signatures carry
-    range-Doppler maps) range_doppler.png."""
+    range-Doppler maps) range_doppler.png.
+
+    Args:
+        sigs: {link name: Signature}.
+        out_dir: folder to write into (created if missing).
+        title: figure title (default none).
+
+    Returns:
+        The paths written.
+    """
     out_dir = Path(out_dir)
     out = [plot_pvt(sigs, out_dir / "pvt.png", title), plot_mean_velocity(sigs, out_dir / "mean_velocity.png", title),
            plot_range(sigs, out_dir / "range.png", title)]

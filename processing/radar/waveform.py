@@ -98,5 +98,5 @@ class Waveform(BaseModel):
         return self.fs / self.slope
 
     def velocity_resolution(self, window_chirps: int) -> float:
-        """Velocity-bin spacing lambda / (2 W PRI) [m/s] of a W-chirp slow-time FFT."""
+        """Velocity-bin spacing lambda / (2 W PRI) [m/s] of a slow-time FFT over `window_chirps` (W) chirps."""
         return self.wavelength / (2 * window_chirps * self.pri_s)

@@ -61,6 +61,7 @@ class Rig:
         return len(self.names)
 
     def index(self, name: str) -> int:
+        """Index of the joint called `name` (ValueError if the rig has none)."""
         return self.names.index(name)
 
     def scaled(self, height: float) -> "Rig":
@@ -71,6 +72,7 @@ class Rig:
         return replace(self, rest=self.rest * s, tails=self.tails * s, height=float(height))
 
     def children(self, j: int) -> list[int]:
+        """Indices of the joints whose parent is joint `j`."""
         return [k for k, p in enumerate(self.parents) if p == j]
 
 
@@ -150,8 +152,12 @@ class Motion:
     @classmethod
     def from_file(cls, path, **options) -> "Motion":
         """A motion-capture take retargeted onto the avatar rig (metres, z up, soles on the floor, starting
-        over the origin facing +x); `options` as `rtchannel.motion.load.load_motion` (height [m], activity,
-        fps [Hz], units, up, ...)."""
+        over the origin facing +x).
+
+        Args:
+            path: the take (BVH, C3D, ...; see `rtchannel.motion.load.load_motion`).
+            **options: `load_motion` options (height [m], activity, fps [Hz], units, up, ...).
+        """
         return _factory("file")(path, **options)
 
     def __post_init__(self) -> None:
@@ -182,7 +188,8 @@ class Motion:
         return (self.n_frames - 1) / self.fps
 
     def attached_points(self, joints: np.ndarray, rest_points: np.ndarray) -> np.ndarray:
-        """Trajectories [F, M, 3] (m) of points rigidly attached to `joints` [M] at rest positions [M, 3]."""
+        """Trajectories [F, M, 3] (m) of points rigidly attached to `joints` [M] (joint indices) at
+        `rest_points` [M, 3] (m, rest pose)."""
         joints = np.asarray(joints)
         local = rest_points - self.rig.rest[joints]
         return self.positions[:, joints] + np.einsum("fmab,mb->fma", self.rotations[:, joints], local)
@@ -193,7 +200,7 @@ class Motion:
         return np.concatenate([self.rotations, t[..., None]], axis=-1)
 
     def resampled(self, fps: float) -> "Motion":
-        """The same motion at another frame rate: slerp for rotations, cubic splines for positions."""
+        """The same motion at another frame rate `fps` [Hz]: slerp for rotations, cubic splines for positions."""
         if fps == self.fps:
             return self
         if not (isinstance(fps, (int, float, np.number)) and 0 < fps < float("inf")):

@@ -47,7 +47,8 @@ class Scene:
 
     @classmethod
     def from_xml(cls, path: str | Path) -> "Scene":
-        """A user's Mitsuba 3 scene file (its shapes need radio materials; the id "body" is reserved)."""
+        """A user's Mitsuba 3 scene file at `path` (its shapes need radio materials; the id "body" is reserved;
+        references to other files are sandboxed to its folder)."""
         return cls(Path(path))
 
     def with_furniture(self, *items) -> "Scene":
