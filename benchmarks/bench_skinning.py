@@ -13,7 +13,6 @@ from rtchannel.motion.load import load_motion
 from rtchannel.body.skin_markers import skin_scatterer_trajectories
 from rtchannel.body.skinning import skin_velocities, skin_vertices
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "mocap" / "cmu"
 
 
 def median_time(fn, repeats: int = 5) -> float:
@@ -26,8 +25,10 @@ def median_time(fn, repeats: int = 5) -> float:
 
 
 def main() -> dict:
-    take = Path(sys.argv[1]) if len(sys.argv) > 1 else SHARED / "walk" / "05_01_iclone.bvh"
-    c3d = SHARED / "walk" / "82_08.c3d"
+    from rtchannel.data_registry import fetch  # third-party takes: mirror, cache or download
+
+    take = Path(sys.argv[1]) if len(sys.argv) > 1 else fetch("mocap/cmu/walk/05_01_iclone.bvh")
+    c3d = fetch("mocap/cmu/walk/82_08.c3d")
     out = {}
     load_motion(take)  # warm caches (avatar, soles) so the import time is the file's own
     t_import = median_time(lambda: load_motion(take), 3)

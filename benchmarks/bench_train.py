@@ -5,7 +5,7 @@ directions/motions; reports accuracies and training time.
 
 Steps (datasets are generated with `rtchannel dataset` unless they exist already):
   1. seed     : the `seed` preset (26 procedural motions x 3 heights x 18 directions x 2 gain sets = 2808)
-  2. mocap    : the 11 CMU walks in ../shared/mocap/cmu/walk x 18 directions (walk class only)
+  2. mocap    : the 11 CMU walks of the data registry (mocap/cmu/walk) x 18 directions (walk class only)
   3. unseen   : the seed plan with another plan seed and height (new procedural motions), 6 directions
   4. train on `seed` (timed), evaluate on `mocap` and `unseen`
   5. crossval : odd seed directions -> even seed directions (and held-out validation)
@@ -23,11 +23,11 @@ import yaml
 from rtchannel.cli import main as cli
 
 ROOT = Path(__file__).resolve().parents[1]
-MOCAP_WALKS = ROOT.parent / "shared" / "mocap" / "cmu" / "walk"
+MOCAP_WALKS = "data:mocap/cmu/walk"  # the CMU walks through the data registry
 
 MOCAP_PLAN = {
     "name": "mocap_walks", "seed": 5, "backend": "points",
-    "motion": {"fps": 60, "sources": [{"files": str(MOCAP_WALKS), "activity": "walk"}], "heights": [1.74]},
+    "motion": {"fps": 60, "sources": [{"files": MOCAP_WALKS, "activity": "walk"}], "heights": [1.74]},
     "physical": {"directions": "seed"},
     "signal": {"gain_sets": [{"name": "seed"}]},
     "storage": {"items_per_shard": 18},

@@ -160,6 +160,24 @@ def fetch_many(pattern: str, *, download: bool = True, progress: bool = False) -
     return [fetch(e.path, download=download, progress=progress) for e in found]
 
 
+def fetch_folder(prefix: str, *, download: bool = True, progress: bool = False) -> Path:
+    """A local folder holding every registered file under the folder `prefix` (e.g.
+    ``realdata/glasgow848/1Dataset``), for tools that read a whole folder: the mirror's when it has them
+    all, else the cache's (files missing there are downloaded, or copied from the mirror)."""
+    import shutil
+
+    paths = fetch_many(prefix.rstrip("/"), download=download, progress=progress)
+    folders = {p.parent for p in paths}
+    if len(folders) == 1:
+        return folders.pop()
+    for e, p in zip(entries(prefix.rstrip("/")), paths):
+        target = cache_dir() / e.path
+        if p != target:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(p, target)
+    return cache_dir() / prefix.rstrip("/")
+
+
 def resolve_spec(spec: str, *, download: bool = True) -> list[Path]:
     """Files named by a plan/option value: ``data:PATTERN`` through the registry, else a local path as is."""
     if spec.startswith(DATA_PREFIX):
@@ -185,6 +203,6 @@ def licences() -> dict[str, list[str]]:
     return out
 
 
-__all__ = ["DataUnavailableError", "Entry", "registry", "entries", "fetch", "fetch_many", "resolve_spec",
+__all__ = ["DataUnavailableError", "Entry", "registry", "entries", "fetch", "fetch_many", "fetch_folder", "resolve_spec",
            "local_path", "mirror_dir", "cache_dir", "status", "licences", "how_to_get", "DATA_PREFIX",
            "MIRROR_ENV", "CACHE_ENV"]

@@ -26,11 +26,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dataset", help="simulated dataset folder (glasgow preset)")
     ap.add_argument("out", help="PNG to write")
-    ap.add_argument("--images", default="../shared/realdata/glasgow848/1Dataset")
+    ap.add_argument("--images", default=None)
     ap.add_argument("--people", default="P36-P45")
     ap.add_argument("--window-s", type=float, default=6.0, help="time window of the preprocessing [s]")
     args = ap.parse_args()
     cfg = PreprocessConfig(v_range_mps=6.0, time_mode="window", window_s=args.window_s)
+    if args.images is None:  # campaign 1 through the data registry (mirror, cache or download)
+        from rtchannel.data_registry import fetch_folder
+
+        args.images = fetch_folder("realdata/glasgow848/1Dataset")
     real, _ = load_real_images(args.images, people=parse_people(args.people))
     ds = DatasetReader(args.dataset)
     half, extent = args.window_s / 2, [-args.window_s / 2, args.window_s / 2, -6, 6]

@@ -1,6 +1,6 @@
 """Real Glasgow spectrograms next to simulated ones, one row per activity (a picture for the README).
 
-    python scripts/glasgow_montage.py DATASET OUT.png [--real ../shared/realdata/glasgow848/1Dataset]
+    python scripts/glasgow_montage.py DATASET OUT.png [--real FOLDER (default: campaign 1 through the data registry)]
 
 Three real recordings (subjects P37, P40, P43, repetition 1) and two simulated items of the same class
 drawn at random (fixed seed) from DATASET (a `rtchannel dataset --config glasgow` folder), each on its own
@@ -32,8 +32,12 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dataset")
     ap.add_argument("out")
-    ap.add_argument("--real", default="../shared/realdata/glasgow848/1Dataset")
+    ap.add_argument("--real", default=None)
     a = ap.parse_args()
+    if a.real is None:  # campaign 1 through the data registry (mirror, cache or download)
+        from rtchannel.data_registry import fetch_folder
+
+        a.real = fetch_folder("realdata/glasgow848/1Dataset")
     ds = DatasetReader(a.dataset)
     rng = np.random.default_rng(0)
     fig, ax = plt.subplots(len(CLASSES), 5, figsize=(16, 12), sharey=True)

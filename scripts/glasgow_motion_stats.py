@@ -58,9 +58,13 @@ def summary(rows: list[dict]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dataset", help="simulated dataset folder (glasgow preset, image layout)")
-    ap.add_argument("--images", default="../shared/realdata/glasgow848/1Dataset")
+    ap.add_argument("--images", default=None)
     ap.add_argument("--people", default="P36-P45")
     args = ap.parse_args()
+    if args.images is None:  # campaign 1 through the data registry (mirror, cache or download)
+        from rtchannel.data_registry import fetch_folder
+
+        args.images = fetch_folder("realdata/glasgow848/1Dataset")
     real, _ = load_real_images(args.images, people=parse_people(args.people))
     ds = DatasetReader(args.dataset)
     for act in ACTIVITIES:
