@@ -107,3 +107,22 @@ def test_registry_matches_the_mirror_origins_file():
     with open(mirror / "ORIGINS.csv", newline="") as f:
         origins = {r["path"]: r["sha256"] for r in csv.DictReader(f)}
     assert {p: e.sha256 for p, e in reg.registry().items()} == origins
+
+
+def test_fetch_folder_gathers_a_folder_split_between_mirror_and_origin(fake, monkeypatch):
+    origin, mirror, cache, files = fake
+    extra = "realdata/x/2P1A02R01.png"
+    data = b"\x89PNG other"
+    (origin / extra).write_bytes(data)
+    entries = dict(reg.registry())
+    url = entries["realdata/x/1P1A01R01.png"].url.replace("1P1A01R01", "2P1A02R01")
+    entries[extra] = reg.Entry(extra, hashlib.sha256(data).hexdigest(), len(data), url, "CC0 (test)")
+    monkeypatch.setattr(reg, "registry", lambda: entries)
+    (mirror / "realdata/x").mkdir(parents=True)
+    (mirror / "realdata/x/1P1A01R01.png").write_bytes(files["realdata/x/1P1A01R01.png"])
+    folder = reg.fetch_folder("realdata/x")  # one file in the mirror, one only at the origin
+    assert folder == cache / "realdata/x"
+    assert sorted(p.name for p in folder.iterdir()) == ["1P1A01R01.png", "2P1A02R01.png"]
+    (cache / "realdata/x/2P1A02R01.png").unlink()
+    (mirror / "realdata/x/2P1A02R01.png").write_bytes(data)
+    assert reg.fetch_folder("realdata/x") == mirror / "realdata/x"  # all in the mirror: used in place
