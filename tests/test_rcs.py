@@ -16,7 +16,7 @@ import pytest
 from processing.radar.propagation import lambertian_sphere_rcs, plate_po_rcs
 from processing.radar.waveform import C0
 from rtchannel.backends.rcs import PEC, monostatic_rcs, plate_mesh, sionna_backend, sphere_mesh
-from rtchannel.scene.rt_scene import SkinMaterial
+from rtchannel.scene.skin import SkinMaterial
 
 LAMBERT_PEC = SkinMaterial(relative_permittivity=1.0, conductivity=1e8, scattering_coefficient=1.0)
 R = 3.0

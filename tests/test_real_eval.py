@@ -4,7 +4,6 @@ Table I (`compare --real`)."""
 import csv
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from rtchannel.scene.rt_scene import SCENES, RadarPlacementError, RTScene, SkinMaterial, gabriel_dry_skin, get_scene
+from rtchannel.scene.rt_scene import SCENES, RadarPlacementError, RTScene, get_scene
+from rtchannel.scene.skin import SkinMaterial, gabriel_dry_skin
 
 
 def _box_mesh(centre, half):

@@ -24,7 +24,6 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
-from processing.classifier.predictor import Classifier
 from processing.classifier.checkpoint import CHECKPOINT_VERSION, load_checkpoint, save_checkpoint
 from processing.classifier.model import ModelConfig, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess_links

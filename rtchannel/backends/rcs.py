@@ -35,7 +35,8 @@ from processing.pathset import PathSet
 from processing.radar.propagation import FOUR_PI_1_5
 from processing.radar.waveform import C0
 from rtchannel.radar import Link, RadarConfig
-from rtchannel.scene.rt_scene import RTScene, SkinMaterial
+from rtchannel.scene.rt_scene import RTScene
+from rtchannel.scene.skin import SkinMaterial
 
 # A backend function maps (vertices [V, 3], faces [T, 3], radar) to {link name: PathSet} of one frame.
 BackendFn = Callable[[np.ndarray, np.ndarray, RadarConfig], dict[str, PathSet]]

@@ -48,7 +48,8 @@ from processing.pathset import PathSet
 from processing.radar.waveform import C0
 from rtchannel.backends.sionna_antennas import link_groups, place_antennas
 from rtchannel.radar import RadarConfig
-from rtchannel.scene.rt_scene import BODY_ID, RTScene, SkinMaterial, get_scene
+from rtchannel.scene.rt_scene import BODY_ID, RTScene, get_scene
+from rtchannel.scene.skin import SkinMaterial
 from rtchannel.motion.pose import Motion
 
 NONE, SPECULAR, DIFFUSE, REFRACTION, DIFFRACTION = 0, 1, 2, 4, 8  # sionna.rt.constants.InteractionType

@@ -130,3 +130,25 @@ def ray_first_hit(origins: np.ndarray, directions: np.ndarray, vertices: np.ndar
             hit_f[i], hit_t[i] = j, t[j]
             hit_b[i] = (1 - u[j] - v[j], u[j], v[j])
     return hit_f, hit_b, hit_t
+
+
+def is_closed(v: np.ndarray, f: np.ndarray) -> bool:
+    """True if the triangles [T, 3] bound volumes (a closed mesh or a union of closed parts, e.g. boxes):
+    with vertices welded by position (1e-6 m), every directed edge is used as often as its reverse."""
+    _, weld = np.unique(np.round(v / 1e-6).astype(np.int64), axis=0, return_inverse=True)
+    g = weld.ravel()[f]
+    edges = np.concatenate([g[:, [0, 1]], g[:, [1, 2]], g[:, [2, 0]]])
+    fwd, back = (np.unique(e, axis=0, return_counts=True) for e in (edges, edges[:, ::-1]))
+    return len(fwd[0]) == len(back[0]) and all(np.array_equal(x, y) for x, y in zip(fwd, back))
+
+
+def winding_numbers(points: np.ndarray, v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Generalised winding number [N] of closed triangle meshes around points [N, 3]: the sum of the signed
+    solid angles of the triangles / 4 pi (Van Oosterom & Strackee 1983); the number of volumes containing
+    the point (negative for inward winding), also for overlapping closed parts."""
+    a, b, c = (v[f[:, i]][None] - points[:, None] for i in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+    det = np.einsum("nti,nti->nt", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("nti,nti->nt", a, b) * lc + np.einsum("nti,nti->nt", a, c) * lb
+           + np.einsum("nti,nti->nt", b, c) * la)
+    return 2.0 * np.arctan2(det, den).sum(axis=1) / (4 * np.pi)

@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 from scipy.interpolate import CubicSpline
 
 from rtchannel.body.avatar import Avatar

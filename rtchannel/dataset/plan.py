@@ -1,5 +1,6 @@
-"""Augmentation plan: a validated config (motion, physical and signal layers) and its deterministic
-expansion into work items, one per (motion variant, direction, link set/waveform, gain set, noise, clutter).
+"""Augmentation plan: loading a validated config (motion, physical and signal layers; the schema is in
+`plan_schema`) and its deterministic expansion into work items, one per (motion variant, direction,
+link set/waveform, gain set, noise, clutter).
 
 Randomness: every draw comes from ``numpy.random.SeedSequence(plan.seed, spawn_key=sha256(key))`` with
 a key naming what is drawn, so the same config gives the same items (and the same dataset), and changing
@@ -12,354 +13,21 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import itertools
-import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import ValidationError
 
-from processing.dsp.signatures import DSPConfig
-from processing.errors import one_line
-from processing.radar.waveform import Waveform
-from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
-from rtchannel.radar import Link, direction_angles
-from rtchannel.body.scatterers import SCATTERER_NAMES
 from rtchannel.data_registry import DATA_PREFIX
 from rtchannel.errors import ConfigError
+from rtchannel.dataset.plan_schema import (  # noqa: F401 - the schema, re-exported with its loader
+    Clutter, GainSet, LinkSet, MotionLayer, PhysicalLayer, Plan, SignalLayer, Source, Storage, for_activity)
 from rtchannel.dataset.plan_yaml import check_backend_options, count_items, read_plan_yaml
 
 MOTION_SUFFIXES = (".bvh", ".c3d")
 PRESETS_DIR = Path(__file__).with_name("presets")
-Scalar = float | tuple[float, float]  # a value, or a (low, high) range drawn uniformly per motion variant
-_NAME = r"^[A-Za-z0-9_\-]+$"
-# fields the motion layer sets itself (height, heading, start, mirror, seed) or that must be common (fps)
-_RESERVED_PROC = {"height", "heading_deg", "start", "seed", "fps"}
-
-
-def _within(v, lo: float, hi: float, name: str, unit: str = ""):
-    """`v` (a value or a (low, high) range) when every value lies in [lo, hi]; ValueError naming it otherwise."""
-    for x in (v if isinstance(v, tuple) else (v,)):
-        if not lo <= x <= hi:
-            raise ValueError(f"{name} {x}{unit} outside {lo:g}-{hi:g}{unit}")
-    return v
-
-
-def _for_activity(v, activity: str):
-    """A per-activity setting's value for `activity` ('*' for any other; None if neither), or `v` itself."""
-    return v.get(activity, v.get("*")) if isinstance(v, dict) else v
-
-
-def _per_activity(v: dict, name: str) -> dict:
-    """`v` when its keys are activities or '*'; ValueError naming the first other key."""
-    for k in v:
-        if k != "*" and k not in ACTIVITIES:
-            raise ValueError(f"{name}: {k!r} is not an activity ({', '.join(ACTIVITIES)}) or '*'")
-    return v
-
-
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-
-class Source(_Model):
-    """One motion source: a procedural generator (``procedural: walk``) or motion files (``files: PATH``)."""
-
-    procedural: Literal[ACTIVITIES] | None = Field(None, description="activity of a procedural generator")
-    variants: int = Field(1, ge=1, le=100000, description="procedural: number of generator seeds (motions)")
-    params: dict[str, Scalar] = Field(default_factory=dict,
-                                      description="procedural: ProceduralParams values or [low, high] ranges")
-    files: str | None = Field(None, description="a .bvh/.c3d file or a folder (relative to the plan file)")
-    pattern: str = Field("**/*", description="files: glob inside a folder (only .bvh/.c3d are used)")
-    activity: str | None = Field(None, description="files: label, or 'from_folder' (the parent folder name)")
-    options: dict[str, Any] = Field(default_factory=dict, description="files: load_motion keyword arguments")
-    trim: tuple[float, float | None] | None = Field(None, description="files: (t0, t1) seconds of each file to "
-                                                    "keep (t1 null = to the end), e.g. one part of a take")
-    fall_directions: list[Literal["forward", "left", "right"]] = Field(
-        ["forward", "left", "right"], min_length=1, description="procedural fall: directions the variants "
-        "cycle through")
-
-    @model_validator(mode="after")
-    def _one_kind(self) -> "Source":
-        if (self.procedural is None) == (self.files is None):
-            raise ValueError("give exactly one of 'procedural' (an activity) or 'files' (a path)")
-        if self.procedural is not None:
-            if self.trim is not None:
-                raise ValueError("trim applies to motion files; procedural motions take params (duration, pads)")
-            bad = sorted(set(self.params) - (set(ProceduralParams.model_fields) - _RESERVED_PROC))
-            if bad:
-                raise ValueError(f"params: {bad[0]!r} is not a procedural parameter here (height, heading, "
-                                 f"start, mirror, seed and fps belong to the motion layer)")
-        else:
-            if self.activity is None:
-                raise ValueError("files: 'activity' is required (an activity or 'from_folder')")
-            if self.activity != "from_folder" and self.activity not in ACTIVITIES:
-                raise ValueError(f"activity must be one of {', '.join(ACTIVITIES)} or 'from_folder'")
-            bad = sorted(set(self.options) - {"units", "up", "align", "floor", "max_gap_s", "on_long_gap"})
-            if bad:
-                raise ValueError(f"options: {bad[0]!r} is not a load_motion option")
-        return self
-
-
-class MotionLayer(_Model):
-    """Motion-layer augmentation. Every list is a product axis; a [low, high] entry is drawn per motion."""
-
-    sources: list[Source] = Field(min_length=1)
-    heights: list[Scalar | None] = Field([1.75], min_length=1, description="body heights [m]; null keeps a file's")
-    time_scales: list[Scalar] = Field([1.0], min_length=1, description="duration factors (2 = half speed)")
-    mirror: list[bool | float] = Field([False], min_length=1, description="left/right mirror (or a probability)")
-    headings_deg: list[Scalar] = Field([0.0], min_length=1, description="turn about the vertical [deg]")
-    starts: list[Literal["auto"] | tuple[Scalar, Scalar]] = Field(
-        ["auto"], min_length=1, description="first-frame hips (x, y) [m]; auto: walks centred on the origin")
-    fps: float = Field(60.0, ge=10, le=2000, description="motion frame rate [Hz]")
-    walk_legs: int = Field(1, ge=1, le=20, description="walks go back and forth: this many passes of each walk, "
-                           "joined by turns on the spot (rtchannel.motion.compose.back_and_forth)")
-    walk_turn_s: Scalar = Field(0.8, description="duration of one turn between walk legs [s] (or a range)")
-    clip_s: dict[str, float] = Field(default_factory=dict, description="recording length [s] per activity ('*': "
-                                     "any other): motions are padded with their first/last pose (split drawn "
-                                     "per motion) or cut to it, as real fixed-length recordings")
-    clip_start_s: Scalar | dict[str, Scalar] | None = Field(
-        None, description="time of a motion's first frame in its recording [s] (or a range, drawn per motion; or "
-        "these per activity, '*': any other); negative: the recording begins that far into the motion. None: "
-        "the motion lies inside its recording, its padding split at random")
-    idle: IdleMotion | None = Field(None, description="small random upper-body movements added to every motion "
-                                    "(rtchannel.motion.idle); null: none")
-    idle_scale: Scalar = Field(1.0, description="factor on the idle amplitudes (or a range, drawn per motion: "
-                               "people differ in how still they keep)")
-
-    @field_validator("clip_s")
-    @classmethod
-    def _clips(cls, v):
-        for k, x in _per_activity(v, "clip_s").items():
-            if not 0.5 <= x <= 600:
-                raise ValueError(f"clip_s.{k}: {x} s outside 0.5-600 s")
-        return v
-
-    @field_validator("clip_start_s")
-    @classmethod
-    def _start(cls, v):
-        for k, x in (_per_activity(v, "clip_start_s") if isinstance(v, dict) else {"": v}).items():
-            _within(x, -30.0, 600.0, f"clip_start_s.{k}" if k else "clip_start_s", " s")
-        return v
-
-    @field_validator("idle_scale")
-    @classmethod
-    def _idle_scale(cls, v):
-        return _within(v, 0.0, 10.0, "idle_scale")
-
-    @model_validator(mode="after")
-    def _idle_amplitudes(self):
-        if self.idle is not None:  # the largest drawn factor must still give valid amplitudes
-            hi = max(self.idle_scale) if isinstance(self.idle_scale, tuple) else self.idle_scale
-            try:
-                self.idle.scaled(hi)
-            except ValidationError as e:
-                raise ValueError(f"idle_scale {hi} takes the idle amplitudes out of range: {one_line(e)}") from None
-        return self
-
-    @field_validator("walk_turn_s")
-    @classmethod
-    def _turn(cls, v):
-        return _within(v, 0.1, 10.0, "walk_turn_s", " s")
-
-    @field_validator("heights", "time_scales", "headings_deg")
-    @classmethod
-    def _ranges(cls, v):
-        for x in v:
-            if isinstance(x, tuple) and not x[0] <= x[1]:
-                raise ValueError(f"range {list(x)} must be [low, high] with low <= high")
-        return v
-
-    @field_validator("heights")
-    @classmethod
-    def _heights(cls, v):
-        for x in v:
-            for h in ((x,) if not isinstance(x, tuple) else x):
-                if h is not None and not 1.2 <= h <= 2.2:
-                    raise ValueError(f"height {h} m outside 1.2-2.2 m")
-        return v
-
-    @field_validator("time_scales")
-    @classmethod
-    def _time_scales(cls, v):
-        for x in v:
-            if min(x if isinstance(x, tuple) else (x,)) <= 0:
-                raise ValueError("time scales must be positive")
-        return v
-
-    @field_validator("mirror")
-    @classmethod
-    def _mirror(cls, v):
-        for x in v:
-            if not isinstance(x, bool) and not 0 <= x <= 1:
-                raise ValueError("mirror entries are true/false or a probability in [0, 1]")
-        return v
-
-
-class LinkSet(_Model):
-    """A named set of radar links (monostatic, bistatic or multistatic); positions before rotation [m]."""
-
-    name: str = Field(pattern=_NAME)
-    links: list[Link] = Field(min_length=1)
-
-    @field_validator("links")
-    @classmethod
-    def _unique(cls, v):
-        names = [link.name for link in v]
-        if len(set(names)) != len(names):
-            raise ValueError(f"link names must be unique, got {names}")
-        return v
-
-
-def _seed_link_set() -> list[LinkSet]:
-    return [LinkSet(name="seed", links=[Link(name="radar1", tx=(3.0, 0.0, 1.1)),
-                                         Link(name="radar2", tx=(0.0, -3.0, 1.1))])]
-
-
-class PhysicalLayer(_Model):
-    """Physical-layer augmentation: directions (rotations of all antennas about z), waveforms, link sets."""
-
-    directions: Literal["seed"] | list[int] | None = Field(
-        None, description="seed directions 1..18 ('seed' = all 18); default when angles_deg is not given")
-    angles_deg: list[float] | None = Field(None, min_length=1, description="rotation angles [deg] instead")
-    waveforms: list[Waveform] = Field(default_factory=lambda: [Waveform()], min_length=1)
-    dsp: DSPConfig = Field(default_factory=DSPConfig)
-    link_sets: list[LinkSet] = Field(default_factory=_seed_link_set, min_length=1)
-    radar: Literal["seed", "glasgow"] = Field("seed", description="radar kit: seed (Ancortek 2400T2R4 horns, "
-                                              "24 GHz defaults) or glasgow (Radar.glasgow: 5.8 GHz 580AD Yagis "
-                                              "looking horizontally at the z axis; waveform and DSP default to "
-                                              "the Glasgow ones)")
-
-    @model_validator(mode="before")
-    @classmethod
-    def _radar_defaults(cls, data):
-        if isinstance(data, dict) and data.get("radar") == "glasgow":
-            from rtchannel.radar import GLASGOW_WAVEFORM, glasgow_dsp
-
-            data = {"waveforms": [GLASGOW_WAVEFORM], "dsp": glasgow_dsp(), **data}
-        return data
-
-    def kit(self, links: list[Link]) -> dict:
-        """Antenna and receiver fields of the radar dict for a link set (empty: RadarConfig's defaults)."""
-        if self.radar != "glasgow":
-            return {}
-        from rtchannel.radar import RadarConfig
-
-        r = RadarConfig.glasgow(height_m=links[0].tx_pos[2], distance_m=2.5)  # boresight at the antenna height
-        return {"antenna": r.antenna.model_dump(mode="json"), "receiver": r.receiver.model_dump(mode="json")}
-
-    @model_validator(mode="after")
-    def _angles(self) -> "PhysicalLayer":
-        if self.directions is not None and self.angles_deg is not None:
-            raise ValueError("give either 'directions' or 'angles_deg', not both")
-        if isinstance(self.directions, list):
-            for d in self.directions:
-                direction_angles(d)  # raises a ValueError naming the bad direction
-        names = [s.name for s in self.link_sets]
-        if len(set(names)) != len(names):
-            raise ValueError(f"link set names must be unique, got {names}")
-        return self
-
-    def rotations(self) -> list[tuple[float, int | None]]:
-        """(rotation angle [deg], seed direction or None) per physical direction."""
-        if self.angles_deg is not None:
-            return [(float(a), None) for a in self.angles_deg]
-        dirs = list(range(1, 19)) if self.directions in (None, "seed") else self.directions
-        return [(direction_angles(d)[0], d) for d in dirs]
-
-
-class GainSet(_Model):
-    """A set of scatterer amplitude gains: the seed's area gains, scaled per scatterer, optionally perturbed.
-
-    points backend: gain_l = seed_l * scale_l * 10^(N(0, perturb_db) / 20), the perturbation drawn per item.
-    Mesh backends (facets, sionna): the set's overall amplitude factor sqrt(sum gain^2 / sum seed^2) scales
-    the item's IQ (it only matters relative to noise and clutter; p(v,t) is normalised).
-    """
-
-    name: str = Field(pattern=_NAME)
-    scale: dict[str, float] = Field(default_factory=dict, description="amplitude factor per scatterer name")
-    perturb_db: float = Field(0.0, ge=0, le=20, description="std of a per-scatterer log-normal factor [dB]")
-
-    @field_validator("scale")
-    @classmethod
-    def _names(cls, v):
-        bad = sorted(set(v) - set(SCATTERER_NAMES))
-        if bad:
-            raise ValueError(f"unknown scatterer {bad[0]!r}; names are {', '.join(SCATTERER_NAMES)}")
-        if any(x < 0 for x in v.values()):
-            raise ValueError("gain scale factors must be >= 0")
-        return v
-
-
-class Clutter(_Model):
-    """Static clutter: point returns at fixed ranges, total power `csr_db` above the item's signal power."""
-
-    n_scatterers: int = Field(8, ge=1, le=1000)
-    csr_db: float = Field(10.0, ge=-60, le=80, description="clutter-to-signal power ratio [dB]")
-    range_m: tuple[float, float] = Field((0.5, 8.0), description="(low, high) range of the returns [m]")
-
-    @field_validator("range_m")
-    @classmethod
-    def _range(cls, v):
-        if not 0 < v[0] <= v[1]:
-            raise ValueError("range_m must be (low, high) with 0 < low <= high")
-        return v
-
-
-class SignalLayer(_Model):
-    """Signal-layer augmentation (product axes): gain sets, receiver noise SNRs and clutter variants."""
-
-    gain_sets: list[GainSet] = Field(default_factory=lambda: [GainSet(name="seed")], min_length=1)
-    snr_db: list[float | None] = Field([None], min_length=1, description="SNR [dB] per link; null = noiseless")
-    clutter: list[Clutter | None] = Field([None], min_length=1)
-
-    @field_validator("gain_sets")
-    @classmethod
-    def _unique(cls, v):
-        names = [g.name for g in v]
-        if len(set(names)) != len(names):
-            raise ValueError(f"gain set names must be unique, got {names}")
-        return v
-
-
-class Storage(_Model):
-    items_per_shard: int = Field(16, ge=1, le=10000, description="work items per task and HDF5 shard")
-    keep_iq: bool = Field(False, description="also store raw IQ (complex64; large)")
-    image_layout: Literal["glasgow"] | None = Field(
-        None, description="store each signature as the real images show it: drawn in this layout and read "
-        "back (processing.realdata.spectrogram_image_writer.through_image); glasgow needs clip_s of 5 or 10 s")
-
-
-class Plan(_Model):
-    """A dataset: motion, physical and signal layers, backend and storage. See docs/dataset.md."""
-
-    name: str = Field("dataset", pattern=_NAME)
-    seed: int = Field(0, ge=0, description="plan seed: every random draw derives from it")
-    backend: str = Field("points", min_length=1)
-    backend_options: dict[str, Any] = Field(default_factory=dict)
-    chair: Literal["auto", "none"] = Field("none", description="mesh backends: auto puts a chair under sit and "
-                                           "stand motions (Scene.for_motion), as --chair auto")
-    motion: MotionLayer
-    physical: PhysicalLayer = Field(default_factory=PhysicalLayer)
-    signal: SignalLayer = Field(default_factory=SignalLayer)
-    storage: Storage = Field(default_factory=Storage)
-
-    @model_validator(mode="after")
-    def _image_clips(self) -> "Plan":
-        if self.storage.image_layout == "glasgow":
-            clips = self.motion.clip_s
-            acts = {s.procedural or s.activity for s in self.motion.sources}
-            missing = sorted(a for a in acts if clips.get(a, clips.get("*")) not in (5.0, 10.0))
-            if missing:
-                raise ValueError(f"storage.image_layout glasgow: motion.clip_s must give {missing[0]} a length of "
-                                 "5 or 10 s (the Glasgow images' lengths)")
-        return self
-
-    def digest(self) -> str:
-        """Short sha256 of the normalised plan (identifies the dataset a folder holds)."""
-        return hashlib.sha256(json.dumps(self.model_dump(mode="json"), sort_keys=True).encode()).hexdigest()[:16]
 
 
 def resolve_config(spec: str | Path) -> Path:
@@ -534,12 +202,12 @@ def expand(plan: Plan) -> list[WorkItem]:
             start = st if st == "auto" else [float(_draw(x, rng)) for x in st]
             motion = {**base, "fps": ml.fps, "height": _draw(h, rng), "time_scale": float(_draw(ts, rng)),
                       "mirror": mirror, "heading_deg": float(_draw(hd, rng)), "start": start, "key": motion_id}
-            clip = _for_activity(ml.clip_s, act)
+            clip = for_activity(ml.clip_s, act)
             if act == "walk" and ml.walk_legs > 1:
                 motion.update(walk_legs=ml.walk_legs, walk_turn_s=float(_draw(ml.walk_turn_s, rng)))
             if clip is not None:  # drawn after the seed's draws: plans without clip_s keep their motions
                 motion.update(clip_s=float(clip), clip_lead=float(rng.uniform(0.0, 1.0)))
-                start = _for_activity(ml.clip_start_s, act)
+                start = for_activity(ml.clip_start_s, act)
                 if start is not None:  # drawn after the lead: plans without clip_start_s keep their motions
                     motion.update(clip_start_s=float(_draw(start, rng)))
             if ml.idle is not None:

@@ -5,7 +5,6 @@ named points [F, 3] and, where the format has them, global joint orientations [F
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np

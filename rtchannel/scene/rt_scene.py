@@ -11,11 +11,7 @@ Also here: the planar static faces (walls, floor, furniture tops) for image-meth
 ray casts (for visibility tests), and the antenna clearance check (Sionna RT gives garbage for an
 antenna closer than ~1 cm to geometry).
 
-Skin: the default dielectric properties are Gabriel et al.'s 4-Cole-Cole model of dry skin
-(S. Gabriel, R. W. Lau, C. Gabriel, "The dielectric properties of biological tissues: III. Parametric
-models for the dielectric spectrum of tissues", Phys. Med. Biol. 41 (1996) 2271-2293, Table 1 "Skin
-(Dry)"; the same model the IFAC/Andreuccetti online database evaluates), evaluated at the carrier:
-24.125 GHz gives eps_r' = 18.9 and sigma = 22.9 S/m (complex eps_r = 18.9 - j 17.1).
+The body's material (dry skin at the carrier) is `rtchannel.scene.skin`.
 """
 from __future__ import annotations
 
@@ -23,7 +19,7 @@ import re
 import tempfile
 import xml.etree.ElementTree as ET
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,77 +31,13 @@ from scipy.spatial import ConvexHull
 from rtchannel.errors import RadarPlacementError, SceneFileError
 from rtchannel.assets import scenes_dir
 from rtchannel.scene.sandbox import load_error_line, load_scene_string, read_scene_xml
-from rtchannel.body.meshgeom import closest_point_on_triangles
+from rtchannel.body.meshgeom import closest_point_on_triangles, is_closed, winding_numbers
+from rtchannel.scene.skin import _SKIN_MATERIAL_ID, SkinMaterial, skin_xml
 
 SCENES: dict[str, Path] = {"room": scenes_dir() / "room.xml", "free_space": scenes_dir() / "free_space.xml"}
 BODY_ID = "body"
-_SKIN_MATERIAL_ID = "rtchannel-skin"
 MIN_WALL_AREA_M2 = 0.25  # planar faces smaller than this are left to the ray tracer (no image sources)
 _PLANE_TOL_M = 1e-3
-
-
-# Gabriel et al. 1996, Table 1, "Skin (Dry)": eps_inf, sigma_ionic [S/m], then (delta_eps, tau [s], alpha).
-_GABRIEL_DRY_SKIN = (4.0, 0.0002, ((32.0, 7.234e-12, 0.0), (1100.0, 32.481e-9, 0.20),
-                                    (0.0, 159.155e-6, 0.20), (0.0, 15.915e-3, 0.20)))
-
-
-def gabriel_dry_skin(frequency_hz: float) -> tuple[float, float]:
-    """(relative permittivity eps_r', conductivity sigma [S/m]) of dry skin at `frequency_hz` (Gabriel 1996).
-
-    The complex permittivity is eps_r' - j sigma / (omega eps0), the convention Sionna RT uses.
-    """
-    w = 2 * np.pi * frequency_hz
-    eps_inf, sig, poles = _GABRIEL_DRY_SKIN
-    eps = complex(eps_inf) + sig / (1j * w * epsilon_0)
-    for de, tau, alpha in poles:
-        eps += de / (1 + (1j * w * tau) ** (1 - alpha))
-    return float(eps.real), float(-eps.imag * w * epsilon_0)
-
-
-_SKIN_24G = gabriel_dry_skin(24.125e9)
-
-
-@dataclass(frozen=True)
-class SkinMaterial:
-    """Radio material of the body (Sionna RT ``RadioMaterial``).
-
-    Attributes:
-        relative_permittivity: real relative permittivity eps_r' at the carrier.
-        conductivity: conductivity sigma [S/m] at the carrier (dielectric loss included).
-        scattering_coefficient: S in [0, 1]; fraction of the reflected field amplitude scattered
-            diffusely (Sionna: specular amplitude scaled by sqrt(1 - S^2)).
-        scattering_pattern: "lambertian", "backscattering" or "directive" (Degli-Esposti 2007).
-        alpha_r, alpha_i, lambda_: lobe parameters of the backscattering/directive patterns.
-        xpd_coefficient: cross-polarisation discrimination of the diffuse part, in [0, 1].
-        thickness: slab thickness [m]; skin absorbs within ~1 mm at 24 GHz, so any thickness of a few
-            cm makes Sionna's slab reflection equal the half-space one.
-        source: where the dielectric values come from.
-    """
-
-    relative_permittivity: float = _SKIN_24G[0]
-    conductivity: float = _SKIN_24G[1]
-    scattering_coefficient: float = 0.5
-    scattering_pattern: str = "lambertian"
-    alpha_r: int = 4
-    alpha_i: int = 4
-    lambda_: float = 0.75
-    xpd_coefficient: float = 0.0
-    thickness: float = 0.05
-    source: str = "Gabriel et al., Phys. Med. Biol. 41:2271 (1996), dry skin, 4-Cole-Cole at 24.125 GHz"
-
-    @classmethod
-    def at(cls, frequency_hz: float, **overrides) -> "SkinMaterial":
-        """Dry skin (Gabriel 1996) evaluated at `frequency_hz`, with any field overridden."""
-        eps, sig = gabriel_dry_skin(frequency_hz)
-        src = f"Gabriel et al., Phys. Med. Biol. 41:2271 (1996), dry skin, 4-Cole-Cole at {frequency_hz / 1e9:g} GHz"
-        return cls(**{"relative_permittivity": eps, "conductivity": sig, "source": src, **overrides})
-
-    def __post_init__(self):
-        if self.scattering_pattern not in ("lambertian", "backscattering", "directive"):
-            raise ValueError(f"unknown scattering pattern {self.scattering_pattern!r}; "
-                             "choose lambertian, backscattering or directive")
-        if not 0.0 <= self.scattering_coefficient <= 1.0:
-            raise ValueError(f"scattering_coefficient must be in [0, 1], got {self.scattering_coefficient}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,14 +89,6 @@ def _vec3(mi, a: np.ndarray, kind):
     return kind(mi.Float(a[:, 0]), mi.Float(a[:, 1]), mi.Float(a[:, 2]))
 
 
-def _skin_xml(skin: SkinMaterial) -> str:
-    vals = dict(relative_permittivity=skin.relative_permittivity, conductivity=skin.conductivity,
-                scattering_coefficient=skin.scattering_coefficient, xpd_coefficient=skin.xpd_coefficient,
-                thickness=skin.thickness)
-    floats = "".join(f'<float name="{k}" value="{float(v)!r}"/>' for k, v in vals.items())
-    return f'<bsdf type="radio-material" id="{_SKIN_MATERIAL_ID}">{floats}</bsdf>'
-
-
 class RTScene:
     """Static scene + deformable body for Sionna RT and Mitsuba ray casts.
 
@@ -210,7 +134,7 @@ class RTScene:
         with tempfile.TemporaryDirectory() as tmp:
             ply = Path(tmp) / "body.ply"
             self._body_mesh(mi, verts).write_ply(str(ply))
-            body_xml = (f'{_skin_xml(self.skin)}<shape type="ply" id="{BODY_ID}">'
+            body_xml = (f'{skin_xml(self.skin)}<shape type="ply" id="{BODY_ID}">'
                         f'<string name="filename" value="{ply}"/><boolean name="face_normals" value="true"/>'
                         f'<ref id="{_SKIN_MATERIAL_ID}" name="bsdf"/></shape>')
             resolver = mi.FileResolver(mi.file_resolver())
@@ -392,8 +316,8 @@ class RTScene:
         """
         pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
         for name, v, f, _ in self._static:
-            if _is_closed(v, f):
-                for p in pts[np.abs(_winding_numbers(pts, v, f)) > 0.5]:
+            if is_closed(v, f):
+                for p in pts[np.abs(winding_numbers(pts, v, f)) > 0.5]:
                     raise RadarPlacementError(f"antenna at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m is inside '{name}'")
         meshes = [(n, v, f) for n, v, f, _ in self._static] + [(BODY_ID, self.body_vertices, self.body_faces)]
         for p in pts:
@@ -441,28 +365,6 @@ class RTScene:
         return {"hit": hit, "t": t, "body": hit & (sid == self.body_object_id), "prim": prim}
 
 
-def _is_closed(v: np.ndarray, f: np.ndarray) -> bool:
-    """True if the triangles [T, 3] bound volumes (a closed mesh or a union of closed parts, e.g. boxes):
-    with vertices welded by position (1e-6 m), every directed edge is used as often as its reverse."""
-    _, weld = np.unique(np.round(v / 1e-6).astype(np.int64), axis=0, return_inverse=True)
-    g = weld.ravel()[f]
-    edges = np.concatenate([g[:, [0, 1]], g[:, [1, 2]], g[:, [2, 0]]])
-    fwd, back = (np.unique(e, axis=0, return_counts=True) for e in (edges, edges[:, ::-1]))
-    return len(fwd[0]) == len(back[0]) and all(np.array_equal(x, y) for x, y in zip(fwd, back))
-
-
-def _winding_numbers(points: np.ndarray, v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Generalised winding number [N] of closed triangle meshes around points [N, 3]: the sum of the signed
-    solid angles of the triangles / 4 pi (Van Oosterom & Strackee 1983); the number of volumes containing
-    the point (negative for inward winding), also for overlapping closed parts."""
-    a, b, c = (v[f[:, i]][None] - points[:, None] for i in range(3))
-    la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
-    det = np.einsum("nti,nti->nt", a, np.cross(b, c))
-    den = (la * lb * lc + np.einsum("nti,nti->nt", a, b) * lc + np.einsum("nti,nti->nt", a, c) * lb
-           + np.einsum("nti,nti->nt", b, c) * la)
-    return 2.0 * np.arctan2(det, den).sum(axis=1) / (4 * np.pi)
-
-
 _CACHE: "OrderedDict[tuple, tuple[RTScene, np.ndarray]]" = OrderedDict()  # key -> (scene, rest vertices)
 _CACHE_SIZE = 4
 
@@ -492,5 +394,5 @@ def get_scene(scene: str | Path, lod: str, height: float, frequency_hz: float,
     return sc
 
 
-__all__ = ["SCENES", "RadarPlacementError", "Wall", "RTScene", "SkinMaterial", "get_scene", "gabriel_dry_skin",
+__all__ = ["SCENES", "RadarPlacementError", "Wall", "RTScene", "get_scene",
            "resolve_scene", "BODY_ID", "MIN_WALL_AREA_M2"]
