@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from processing.errors import InputError
+
 
 @dataclass
 class PathSet:
@@ -47,23 +49,23 @@ class PathSet:
         self.gains = np.asarray(self.gains, dtype=np.complex128)
         k, p = self.delays.shape
         if self.times.shape != (k,) or self.gains.shape != (k, p):
-            raise ValueError(f"PathSet shapes disagree: times {self.times.shape}, delays {self.delays.shape}, "
+            raise InputError(f"PathSet shapes disagree: times {self.times.shape}, delays {self.delays.shape}, "
                              f"gains {self.gains.shape}")
         if self.ids is not None and np.shape(self.ids) != (p,):
-            raise ValueError(f"PathSet ids must have shape ({p},), got {np.shape(self.ids)}")
+            raise InputError(f"PathSet ids must have shape ({p},), got {np.shape(self.ids)}")
         if self.delay_rates is not None:
             self.delay_rates = np.asarray(self.delay_rates, dtype=np.float64)
             if self.delay_rates.shape != (k, p):
-                raise ValueError("PathSet delay_rates must have the shape of delays")
+                raise InputError("PathSet delay_rates must have the shape of delays")
         if k >= 2 and not np.all(np.diff(self.times) > 0):
-            raise ValueError("PathSet times must be strictly increasing")
+            raise InputError("PathSet times must be strictly increasing")
         present = self.gains != 0
         if not np.all(np.isfinite(self.gains)):
-            raise ValueError(f"PathSet for link '{self.link}' has NaN/inf gains")
+            raise InputError(f"PathSet for link '{self.link}' has NaN/inf gains")
         if np.any(present & ~np.isfinite(self.delays)):
-            raise ValueError(f"PathSet for link '{self.link}' has a path with a gain but no finite delay")
+            raise InputError(f"PathSet for link '{self.link}' has a path with a gain but no finite delay")
         if np.any(self.delays[present] < 0):
-            raise ValueError(f"PathSet for link '{self.link}' has negative delays")
+            raise InputError(f"PathSet for link '{self.link}' has negative delays")
 
     @property
     def n_frames(self) -> int:

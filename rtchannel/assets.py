@@ -12,6 +12,8 @@ from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
+from processing.errors import InputError
+
 ASSET_FOLDERS = ("meshes", "scenes")
 PACKAGED = "_assets"  # sub-folder of the installed package that holds the copies
 
@@ -20,7 +22,7 @@ PACKAGED = "_assets"  # sub-folder of the installed package that holds the copie
 def asset_root(name: str) -> Path:
     """Folder of the asset tree `name` ("meshes" or "scenes"): packaged copy first, else the checkout's."""
     if name not in ASSET_FOLDERS:
-        raise ValueError(f"unknown asset folder {name!r} (one of {', '.join(ASSET_FOLDERS)})")
+        raise InputError(f"unknown asset folder {name!r} (one of {', '.join(ASSET_FOLDERS)})")
     packaged = resources.files("rtchannel").joinpath(PACKAGED, name)
     if packaged.is_dir():
         return Path(str(packaged))

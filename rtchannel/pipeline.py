@@ -18,6 +18,7 @@ from processing.pathset import PathSet
 from rtchannel.backends import MESH_BACKENDS, backend_function
 from rtchannel.motion.pose import Motion
 from rtchannel.radar import RadarConfig
+from processing.errors import InputError
 
 
 @dataclass
@@ -291,7 +292,7 @@ def union_radar(radars) -> RadarConfig:
     first = radars[0]
     for r in radars[1:]:
         if r.waveform != first.waveform:
-            raise ValueError("radars traced together must share one waveform (carrier and wavelength)")
+            raise InputError("radars traced together must share one waveform (carrier and wavelength)")
     links = []
     for i, r in enumerate(radars):
         for lk in r.links:
@@ -330,7 +331,7 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
     iq_transforms = [None] * n if iq_transforms is None else list(iq_transforms)
     noise_seeds = [None] * n if noise_seeds is None else list(noise_seeds)
     if len(iq_transforms) != n or len(noise_seeds) != n:
-        raise ValueError("iq_transforms and noise_seeds need one entry per radar")
+        raise InputError("iq_transforms and noise_seeds need one entry per radar")
     for r in radars:
         check_recording(motion.duration, r.waveform, r.dsp, len(r.links), keep_iq)
     union = union_radar(radars)

@@ -24,6 +24,7 @@ from processing.dsp.signatures import DSPConfig
 from processing.dsp.config import GLASGOW_DSP
 from processing.radar.receiver import ANCORTEK_2400T2R4, ANCORTEK_580AD, ReceiverConfig
 from processing.radar.waveform import Waveform
+from processing.errors import InputError
 
 MONOSTATIC_TOLERANCE_M = 0.1
 MAX_COORDINATE_M = 1e4  # antenna coordinates beyond 10 km are a unit mistake, not a room  # tx and rx closer than this share one position (co-located horns)
@@ -44,9 +45,9 @@ class Link(BaseModel):
     @classmethod
     def _finite(cls, v):
         if v is not None and not np.all(np.isfinite(v)):
-            raise ValueError("antenna position must be finite")
+            raise InputError("antenna position must be finite")
         if v is not None and np.max(np.abs(v)) > MAX_COORDINATE_M:
-            raise ValueError(f"antenna position {tuple(v)} is more than {MAX_COORDINATE_M:g} m from the origin "
+            raise InputError(f"antenna position {tuple(v)} is more than {MAX_COORDINATE_M:g} m from the origin "
                              "in some coordinate (a room-scale simulator; check the units: metres)")
         return v
 
@@ -109,7 +110,7 @@ class RadarConfig(BaseModel):
     def _unique_names(self) -> "RadarConfig":
         names = [link.name for link in self.links]
         if len(set(names)) != len(names):
-            raise ValueError(f"link names must be unique, got {names}")
+            raise InputError(f"link names must be unique, got {names}")
         return self
 
     @classmethod
@@ -214,7 +215,7 @@ def direction_angles(direction: int) -> tuple[float, float]:
     Direction 11 gives (-160, 110), as in the seed's Fig. 6.
     """
     if not (isinstance(direction, (int, np.integer)) and 1 <= direction <= 18):
-        raise ValueError(f"direction must be an integer 1..18, got {direction!r}")
+        raise InputError(f"direction must be an integer 1..18, got {direction!r}")
     t1 = wrap_deg(20.0 * (direction - 1))
     return t1, wrap_deg(t1 - 90.0)
 

@@ -199,3 +199,35 @@ def test_console_script_flushes_before_ending(tmp_path):
                                              "range_doppler.png"]
     with h5py.File(out / "signature.h5") as f:
         assert f["radar2"]["p_vt"].shape[1] == f["radar2"]["time"].shape[0] > 0
+
+
+def _break_simulate(monkeypatch, exc):
+    import rtchannel.cli.simulate as sim
+
+    def boom(args):
+        raise exc
+    monkeypatch.setattr(sim, "cmd_simulate", boom)
+
+
+def test_internal_errors_are_bugs_exit_1_with_traceback_on_request(tmp_path, capsys, monkeypatch):
+    """Only user errors are exit 2; a library's own ValueError (a numpy shape bug, say) is a bug: one line
+    saying so and exit 1, or the traceback with --debug / RTCHANNEL_DEBUG=1."""
+    _break_simulate(monkeypatch, ValueError("operands could not be broadcast together with shapes (3,) (4,)"))
+    assert main(["simulate", "--out", str(tmp_path / "o")]) == 1
+    line = _one_error_line(capsys)
+    assert "internal error" in line and "ValueError" in line and "--debug" in line
+    with pytest.raises(ValueError, match="broadcast"):
+        main(["--debug", "simulate", "--out", str(tmp_path / "o")])
+    monkeypatch.setenv("RTCHANNEL_DEBUG", "1")
+    with pytest.raises(ValueError, match="broadcast"):
+        main(["simulate", "--out", str(tmp_path / "o")])
+
+
+def test_user_errors_stay_exit_2_and_llvm_missing_is_one_of_them(tmp_path, capsys, monkeypatch):
+    from processing.errors import InputError
+    from rtchannel.scene.llvm import LLVMNotFoundError
+
+    assert issubclass(LLVMNotFoundError, InputError)
+    _break_simulate(monkeypatch, LLVMNotFoundError("no usable libLLVM (>= 16) found for Dr.Jit: install LLVM"))
+    assert main(["simulate", "--out", str(tmp_path / "o")]) == 2
+    assert "libLLVM" in _one_error_line(capsys)

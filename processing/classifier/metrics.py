@@ -16,15 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from processing.atomic import write_text_atomic
+from processing.errors import InputError
 
 
 def confusion_matrix(y_true, y_pred, n_classes: int) -> np.ndarray:
     """Counts [n_classes, n_classes]: row = true label, column = predicted label."""
     yt, yp = np.asarray(y_true, int), np.asarray(y_pred, int)
     if yt.shape != yp.shape:
-        raise ValueError(f"y_true and y_pred differ in length ({yt.size} vs {yp.size})")
+        raise InputError(f"y_true and y_pred differ in length ({yt.size} vs {yp.size})")
     if yt.size and (min(yt.min(), yp.min()) < 0 or max(yt.max(), yp.max()) >= n_classes):
-        raise ValueError(f"labels must lie in 0..{n_classes - 1}")
+        raise InputError(f"labels must lie in 0..{n_classes - 1}")
     cm = np.zeros((n_classes, n_classes), np.int64)
     np.add.at(cm, (yt, yp), 1)
     return cm

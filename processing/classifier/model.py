@@ -20,6 +20,8 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from torch import nn
 
+from processing.errors import InputError
+
 # Size limits, checked from the configuration before anything is allocated (a checkpoint may ask for anything):
 MAX_PARAMETERS = 50_000_000  # 200 MB of float32 weights, ~0.8 GB with Adam's state and gradients
 MAX_ACTIVATION_BYTES = 256 * 2**20  # forward activations of one sample (the seed's 256 x 256 input needs ~0.1 GB)
@@ -55,7 +57,7 @@ class ModelConfig(BaseModel):
             if self.padding == "valid":
                 h, w = h - self.kernel_size + 1, w - self.kernel_size + 1
             if min(h, w) < 2:
-                raise ValueError(f"input {self.input_size} is too small for {len(self.channels)} '{self.padding}' "
+                raise InputError(f"input {self.input_size} is too small for {len(self.channels)} '{self.padding}' "
                                  f"{self.kernel_size}x{self.kernel_size} conv/pool layers (use padding 'same' or a "
                                  "larger input)")
             params += c_in * c * self.kernel_size ** 2 + c + (2 * c if self.batch_norm else 0)
@@ -65,10 +67,10 @@ class ModelConfig(BaseModel):
         feats = c_in * h * w * (self.n_branches if self.fusion == "concat" else 1)
         params += feats * self.mlp_hidden + self.mlp_hidden + self.mlp_hidden * self.n_classes + self.n_classes
         if act * self.n_branches > MAX_ACTIVATION_BYTES:
-            raise ValueError(f"one input sample would need {act * self.n_branches / 2**20:.0f} MiB of activations, "
+            raise InputError(f"one input sample would need {act * self.n_branches / 2**20:.0f} MiB of activations, "
                              f"more than {MAX_ACTIVATION_BYTES >> 20} MiB (smaller input_size or channels)")
         if params > MAX_PARAMETERS:
-            raise ValueError(f"the network would have {params:.3g} parameters, more than the limit of "
+            raise InputError(f"the network would have {params:.3g} parameters, more than the limit of "
                              f"{MAX_PARAMETERS:.3g} (smaller input_size, channels or mlp_hidden)")
         return self
 
@@ -108,7 +110,7 @@ class MultiPerspectiveDCNN(nn.Module):
         except RuntimeError:
             n_feat = 0
         if n_feat == 0:
-            raise ValueError(f"input {cfg.input_size} is too small for {len(cfg.channels)} '{cfg.padding}' "
+            raise InputError(f"input {cfg.input_size} is too small for {len(cfg.channels)} '{cfg.padding}' "
                              f"{cfg.kernel_size}x{cfg.kernel_size} conv/pool layers (use padding 'same' or a larger input)")
         self.n_features = n_feat * (cfg.n_branches if cfg.fusion == "concat" else 1)
         self.mlp = nn.Sequential(nn.Linear(self.n_features, cfg.mlp_hidden), nn.ReLU(inplace=True),
@@ -116,7 +118,7 @@ class MultiPerspectiveDCNN(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         if x.ndim != 4 or x.shape[1] != self.cfg.n_branches:
-            raise ValueError(f"expected input [B, {self.cfg.n_branches}, V, T], got {tuple(x.shape)}")
+            raise InputError(f"expected input [B, {self.cfg.n_branches}, V, T], got {tuple(x.shape)}")
         feats = [self.fens[0 if self.cfg.shared_weights else i](x[:, i:i + 1]) for i in range(x.shape[1])]
         if self.cfg.fusion == "concat":
             f = torch.cat(feats, dim=1)

@@ -143,12 +143,12 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
     """
     p = np.nan_to_num(np.asarray(p_vt, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     if p.ndim != 2 or p.shape[1] == 0:
-        raise ValueError(f"p_vt must be a non-empty [V, T] array, got shape {p.shape}")
+        raise InputError(f"p_vt must be a non-empty [V, T] array, got shape {p.shape}")
     p = np.maximum(p, 0.0)
     if valid is not None:
         valid = np.asarray(valid, dtype=bool).reshape(-1)
         if valid.size != p.shape[1]:
-            raise ValueError(f"valid has {valid.size} time bins, p_vt {p.shape[1]}")
+            raise InputError(f"valid has {valid.size} time bins, p_vt {p.shape[1]}")
     p = _velocity_grid(p, velocity, cfg)
     if cfg.time_mode == "window":
         p = _time_window(p, time, cfg)
@@ -168,7 +168,7 @@ def preprocess_links(links: dict[str, dict], names, cfg: PreprocessConfig) -> np
     """Stacked inputs [len(names), n_velocity, n_time] from {link: {"p_vt", "velocity", "time", ("valid")}}."""
     missing = [n for n in names if n not in links]
     if missing:
-        raise ValueError(f"sample has no link {missing[0]!r} (has {', '.join(links)})")
+        raise InputError(f"sample has no link {missing[0]!r} (has {', '.join(links)})")
     return np.stack([preprocess(links[n]["p_vt"], links[n].get("velocity"), links[n].get("time"), cfg,
                                 links[n].get("valid"))
                      for n in names])

@@ -27,7 +27,7 @@ from torch import nn
 from processing.classifier.checkpoint import CHECKPOINT_VERSION, load_checkpoint, save_checkpoint
 from processing.classifier.model import ModelConfig, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess_links
-from processing.errors import TrainingError, one_line
+from processing.errors import InputError, TrainingError, one_line
 
 DEFAULT_THREADS = 1  # pinned: results must not depend on the machine's load (see the module docstring)
 
@@ -85,7 +85,7 @@ def split_indices(labels, groups=None, val_fraction: float = 0.2, seed: int = 0)
     if groups is not None and len(set(groups)) < labels.size:
         groups = np.asarray([str(g) for g in groups])
         if np.unique(groups).size < n_splits:
-            raise ValueError(f"grouped split needs at least {n_splits} motion sources, got {np.unique(groups).size}"
+            raise InputError(f"grouped split needs at least {n_splits} motion sources, got {np.unique(groups).size}"
                              " (use an ungrouped split)")
         skf = StratifiedGroupKFold(n_splits=n_splits, shuffle=True, random_state=seed)
         n_cls = np.unique(labels).size

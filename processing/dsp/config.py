@@ -11,6 +11,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from processing.windows import is_window_name
+from processing.errors import InputError
 
 # Default MTI: centred moving-average subtraction with its -3 dB point at 0.02 m/s (3.2 Hz at 24.125 GHz:
 # L = 469 chirps = 0.23 s at PRF 2 kHz; 0.77 Hz and ~1 s at 5.8 GHz / 1 kHz). Chosen by measurement
@@ -107,26 +108,26 @@ class DSPConfig(BaseModel):
     @classmethod
     def _window_exists(cls, name: str) -> str:
         if not is_window_name(name):
-            raise ValueError(f"unknown window {name!r}; use a scipy.signal.get_window name such as boxcar, "
+            raise InputError(f"unknown window {name!r}; use a scipy.signal.get_window name such as boxcar, "
                              "hann, hamming, blackman")
         return name
 
     @model_validator(mode="after")
     def _consistent(self) -> "DSPConfig":
         if self.hop_chirps > self.window_chirps:
-            raise ValueError(f"hop_chirps ({self.hop_chirps}) must not exceed window_chirps "
+            raise InputError(f"hop_chirps ({self.hop_chirps}) must not exceed window_chirps "
                              f"({self.window_chirps}): chirps between windows would be skipped")
         if self.fft_points is not None and self.fft_points < self.window_chirps:
-            raise ValueError(f"fft_points ({self.fft_points}) must be at least window_chirps "
+            raise InputError(f"fft_points ({self.fft_points}) must be at least window_chirps "
                              f"({self.window_chirps}); zero padding cannot shorten the window")
         # a dumped config carries both fields (the m/s one at its default): only a non-default m/s value
         # next to a Hz value is a contradiction, so model_dump -> model_validate round-trips
         if ({"mti_cutoff_hz", "mti_cutoff_mps"} <= self.model_fields_set and self.mti_cutoff_hz is not None
                 and self.mti_cutoff_mps != DEFAULT_MTI_CUTOFF_MPS):
-            raise ValueError("give the MTI cut-off either in Hz (mti_cutoff_hz) or in m/s (mti_cutoff_mps), "
+            raise InputError("give the MTI cut-off either in Hz (mti_cutoff_hz) or in m/s (mti_cutoff_mps), "
                              "not both")
         if self.max_range_m is not None and self.max_range_m < self.min_range_m:
-            raise ValueError(f"max_range_m ({self.max_range_m}) is below min_range_m ({self.min_range_m})")
+            raise InputError(f"max_range_m ({self.max_range_m}) is below min_range_m ({self.min_range_m})")
         return self
 
     @property

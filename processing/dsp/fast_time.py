@@ -33,6 +33,7 @@ import numpy as np
 
 from processing.radar.waveform import Waveform
 from processing.windows import get_window
+from processing.errors import InputError
 
 
 @dataclass
@@ -77,7 +78,7 @@ def doppler_band(rng: np.ndarray, wf: Waveform, cfg) -> np.ndarray:
     at most half a bin below `min_range_m` (both ends of the band take the bin containing the limit)."""
     band = rng >= cfg.min_range_m - 0.5 * wf.range_resolution
     if not band.any():
-        raise ValueError(f"no range bin between {cfg.min_range_m} and {max_range(wf, cfg)} m (bin spacing "
+        raise InputError(f"no range bin between {cfg.min_range_m} and {max_range(wf, cfg)} m (bin spacing "
                          f"{wf.range_resolution:.3f} m)")
     return band
 
@@ -107,7 +108,7 @@ def coherent_weights(wf: Waveform, cfg) -> tuple[np.ndarray, float]:
     n = wf.samples_per_chirp
     m0 = coherent_offset(wf, cfg)
     if not 0 <= m0 <= n - 8:
-        raise ValueError(f"coherent_offset_samples = {m0} leaves fewer than 8 of the {n} samples per chirp")
+        raise InputError(f"coherent_offset_samples = {m0} leaves fewer than 8 of the {n} samples per chirp")
     k_used = range_bins(wf, cfg)
     band = k_used[doppler_band(k_used * wf.range_resolution, wf, cfg)]
     n_seg = n - m0
@@ -148,7 +149,7 @@ def project(iq: np.ndarray, wf: Waveform, cfg, t0: float = 0.0) -> Projection:
     """Fast-time stage: raw IQ [C, N] whose first chirp starts at t0 [s] -> `Projection`."""
     n = wf.samples_per_chirp
     if iq.ndim != 2 or iq.shape[-1] != n:
-        raise ValueError(f"IQ must be [chirps, {n}] (the waveform's samples per chirp), got {iq.shape}")
+        raise InputError(f"IQ must be [chirps, {n}] (the waveform's samples per chirp), got {iq.shape}")
     k = range_bins(wf, cfg)
     rng = k * wf.range_resolution
     doppler_band(rng, wf, cfg)

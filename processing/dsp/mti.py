@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from processing.radar.waveform import C0
+from processing.errors import InputError
 
 MA_CUTOFF_PRODUCT = 0.7553772304823293  # f_c L / PRF where sinc(f L / PRF) = 1 - 1/sqrt(2) (-3 dB of 1 - sinc)
 
@@ -71,7 +72,7 @@ def butterworth_sos(order: int, fc_hz: float, prf_hz: float) -> np.ndarray:
 
 def _check_cutoff(fc: float, prf: float) -> None:
     if not 0 < fc < prf / 2:
-        raise ValueError(f"MTI cut-off {fc:g} Hz must lie between 0 and the slow-time Nyquist frequency "
+        raise InputError(f"MTI cut-off {fc:g} Hz must lie between 0 and the slow-time Nyquist frequency "
                          f"PRF/2 = {prf / 2:g} Hz (set mti_cutoff_hz or mti_cutoff_mps lower)")
 
 

@@ -42,6 +42,7 @@ from processing.dsp.fast_time import Projection, coherent_weights, doppler_band,
 from processing.dsp.mti import mti_filter
 from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
+from processing.errors import InputError
 
 __all__ = ["DEFAULT_MTI_CUTOFF_MPS", "DSPConfig", "GLASGOW_DSP", "Projection", "Signature", "column_sums",
            "mean_velocity", "project", "signatures", "signatures_from_projection"]
@@ -208,7 +209,7 @@ def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig(),
 
     if cfg.range_sum == "coherent":
         if proj.coherent is None:
-            raise ValueError("range_sum 'coherent' needs the projection's coherent slow-time signal")
+            raise InputError("range_sum 'coherent' needs the projection's coherent slow-time signal")
         x = mti_filter(proj.coherent, prf, wf.carrier_hz, cfg)
         f_ref = proj.coherent_carrier_hz
         # unit-energy taper: a window's total power nfft sum |x w|^2 is at most nfft max |x|^2

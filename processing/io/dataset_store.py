@@ -124,7 +124,7 @@ def read_shard_entries(path: str | Path, verify: bool = False) -> tuple[list[dic
         for name, g in f.items():
             entry = {**json.loads(g.attrs["entry"]), "shard": path.name}
             if entry.get("item_id") != name or not isinstance(entry.get("sha256"), dict):
-                raise ValueError(f"{path.name}: group {name[:40]!r} holds an inconsistent entry")
+                raise InputError(f"{path.name}: group {name[:40]!r} holds an inconsistent entry")
             if verify and not _verified(g, entry):
                 failed.append(name)
             else:

@@ -47,7 +47,7 @@ def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, 
         for key in _ARRAYS + (("range_doppler",) if sig.range_doppler is not None else ()):
             value = getattr(sig, key)
             if value is not None and not np.isfinite(np.asarray(value, dtype=float)).all():
-                raise ValueError(f"{path}: link {name}: {key} holds non-finite values; nothing written")
+                raise InputError(f"{path}: link {name}: {key} holds non-finite values; nothing written")
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs.update(activity=activity, backend=backend, seed=int(seed), direction_deg=float(direction_deg),
                        version=FORMAT_VERSION, config=json.dumps(config, sort_keys=True, default=str))

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from dtaidistance import dtw
 
+from processing.errors import InputError
+
 
 def normalised_dtw(a: np.ndarray, b: np.ndarray, scale: float | None = None) -> float:
     """DTW distance between two mean-velocity curves [m/s], normalised to be unit-free.
@@ -26,13 +28,13 @@ def normalised_dtw(a: np.ndarray, b: np.ndarray, scale: float | None = None) -> 
     a = np.ascontiguousarray(a, dtype=np.double)
     b = np.ascontiguousarray(b, dtype=np.double)
     if a.size == 0 or b.size == 0:
-        raise ValueError("DTW needs two non-empty curves")
+        raise InputError("DTW needs two non-empty curves")
     if scale is None:
         scale = max(np.abs(a).max(), np.abs(b).max())
         if scale == 0:
             return 0.0
     if scale <= 0:
-        raise ValueError("DTW scale must be positive")
+        raise InputError("DTW scale must be positive")
     # use_pruning=False: dtaidistance 2.5's default pruning (Euclidean upper bound) returns inf for some
     # pairs whose optimal path is near the diagonal (measured: a near-zero simulated curve against a real
     # sit-down gave inf, the unpruned C DTW 4.74); the unpruned C loop is exact.
@@ -54,7 +56,7 @@ def pvt_tv_distance(p: np.ndarray, q: np.ndarray) -> float:
     common time bins where both carry signal (1.0 if a bin has signal in only one of them).
     """
     if p.shape[0] != q.shape[0]:
-        raise ValueError(f"p(v,t) velocity axes differ: {p.shape[0]} vs {q.shape[0]} bins")
+        raise InputError(f"p(v,t) velocity axes differ: {p.shape[0]} vs {q.shape[0]} bins")
     n = min(p.shape[1], q.shape[1])
     pp, ok_p = _column_distributions(p[:, :n])
     qq, ok_q = _column_distributions(q[:, :n])
@@ -72,7 +74,7 @@ def pvt_wasserstein(p: np.ndarray, q: np.ndarray, velocity: np.ndarray) -> float
     velocity the energy sits apart. Per time bin: integral over v of |CDF_p - CDF_q| dv.
     """
     if p.shape[0] != q.shape[0] or p.shape[0] != len(velocity):
-        raise ValueError("p(v,t) velocity axes differ")
+        raise InputError("p(v,t) velocity axes differ")
     n = min(p.shape[1], q.shape[1])
     pp, ok_p = _column_distributions(p[:, :n])
     qq, ok_q = _column_distributions(q[:, :n])
@@ -88,7 +90,7 @@ def mean_velocity_rmse(a: np.ndarray, b: np.ndarray) -> float:
     """RMS difference [m/s] of two mean-velocity curves over their common time bins."""
     n = min(len(a), len(b))
     if n == 0:
-        raise ValueError("RMSE needs two non-empty curves")
+        raise InputError("RMSE needs two non-empty curves")
     return float(np.sqrt(np.mean((np.asarray(a[:n]) - np.asarray(b[:n])) ** 2)))
 
 

@@ -44,6 +44,8 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
 
+from processing.errors import InputError
+
 Vec3 = tuple[float, float, float]
 _TINY = 1e-30  # below this squared sine a direction counts as on the boresight axis (float32-safe)
 _LN2 = math.log(2.0)
@@ -72,13 +74,13 @@ class _Antenna(BaseModel):
     @model_validator(mode="after")
     def _check_orientation(self):
         if self.boresight is not None and self.look_at is not None:
-            raise ValueError("boresight and look_at: give one of them, not both")
+            raise InputError("boresight and look_at: give one of them, not both")
         if np.linalg.norm(self.up) == 0:
-            raise ValueError("up must be a non-zero vector")
+            raise InputError("up must be a non-zero vector")
         if self.boresight is not None:
             b = np.asarray(self.boresight, float)
             if np.linalg.norm(b) == 0:
-                raise ValueError("boresight must be a non-zero vector")
+                raise InputError("boresight must be a non-zero vector")
             _check_not_parallel(b, np.asarray(self.up, float))
         return self
 
@@ -102,7 +104,7 @@ class _Antenna(BaseModel):
         elif self.look_at is not None:
             b = np.asarray(self.look_at, float) - p
             if np.linalg.norm(b) < 1e-9:
-                raise ValueError(f"look_at {self.look_at} coincides with the antenna position {tuple(p)}: "
+                raise InputError(f"look_at {self.look_at} coincides with the antenna position {tuple(p)}: "
                                  "the boresight is undefined")
         else:
             b = np.array([1.0, 0.0, 0.0])  # isotropic antennas need no orientation
@@ -122,7 +124,7 @@ class _Antenna(BaseModel):
 def _check_not_parallel(b: np.ndarray, up: np.ndarray) -> None:
     s = np.linalg.norm(np.cross(b, up)) / (np.linalg.norm(b) * np.linalg.norm(up))
     if s < 1e-6:
-        raise ValueError("boresight is parallel to up: the antenna's azimuth/elevation planes are undefined "
+        raise InputError("boresight is parallel to up: the antenna's azimuth/elevation planes are undefined "
                          "(choose another up vector)")
 
 
@@ -143,7 +145,7 @@ class _Directional(_Antenna):
     @model_validator(mode="after")
     def _needs_orientation(self):
         if self.boresight is None and self.look_at is None:
-            raise ValueError(f"a {self.kind} antenna needs boresight or look_at")
+            raise InputError(f"a {self.kind} antenna needs boresight or look_at")
         return self
 
 
@@ -171,7 +173,7 @@ class YagiBeam(_Directional):
     @model_validator(mode="after")
     def _back_above_floor(self):
         if self.front_to_back_db > self.floor_db:
-            raise ValueError(f"front_to_back_db ({self.front_to_back_db}) exceeds floor_db ({self.floor_db}): "
+            raise InputError(f"front_to_back_db ({self.front_to_back_db}) exceeds floor_db ({self.floor_db}): "
                              "the floor would hide the back lobe; lower front_to_back_db or raise floor_db")
         return self
 
@@ -259,7 +261,7 @@ def peak_gain_dbi(spec) -> float:
 def kraus_gain_dbi(hpbw_az_deg: float, hpbw_el_deg: float, efficiency: float = 1.0) -> float:
     """Kraus's estimate 10 log10(41253 eta / (HPBW_az HPBW_el)) [dBi], beamwidths in degrees."""
     if not (0 < efficiency <= 1 and hpbw_az_deg > 0 and hpbw_el_deg > 0):
-        raise ValueError("kraus_gain_dbi needs beamwidths > 0 and 0 < efficiency <= 1")
+        raise InputError("kraus_gain_dbi needs beamwidths > 0 and 0 < efficiency <= 1")
     return 10 * math.log10(41252.96 * efficiency / (hpbw_az_deg * hpbw_el_deg))
 
 

@@ -52,6 +52,7 @@ from processing.radar.propagation import received_power_ratio
 from processing.radar.antenna import AntennaPattern, GaussianBeam, YagiBeam
 from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
+from processing.errors import InputError
 
 K_BOLTZMANN = 1.380649e-23  # J/K (exact, SI 2019)
 T0_K = 290.0  # reference temperature of the noise figure (IEEE)
@@ -111,7 +112,7 @@ def noise_psd_w_per_hz(cfg: ReceiverConfig) -> float:
 def noise_power_per_sample(cfg: ReceiverConfig, fs: float) -> float:
     """Noise power of one complex ADC sample, N0 fs G_chain [W] (the scaled IQ's unit), fs in Hz."""
     if not (fs > 0 and math.isfinite(fs)):
-        raise ValueError(f"sampling rate fs must be a positive finite number of Hz, got {fs!r}")
+        raise InputError(f"sampling rate fs must be a positive finite number of Hz, got {fs!r}")
     return noise_psd_w_per_hz(cfg) * fs * 10.0 ** (cfg.chain_gain_db / 10.0)
 
 
@@ -142,14 +143,14 @@ def _block_rng(seed, block: int, stream: int) -> np.random.Generator:
     except TypeError:
         entropy = []
     if not entropy or min(entropy) < 0:
-        raise ValueError(f"seed must be a non-negative integer or a non-empty sequence of them, got {seed!r}")
+        raise InputError(f"seed must be a non-negative integer or a non-empty sequence of them, got {seed!r}")
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy, spawn_key=(block, stream))))
 
 
 def _keyed(seed, stream: int, first_chirp: int, n_chirps: int, draw) -> np.ndarray:
     """Rows first_chirp .. first_chirp + n_chirps of a per-chirp random array built block by block."""
     if first_chirp < 0 or n_chirps < 0:
-        raise ValueError("first_chirp and n_chirps must be >= 0")
+        raise InputError("first_chirp and n_chirps must be >= 0")
     if n_chirps == 0:
         _block_rng(seed, 0, stream)  # still reject a bad seed
         return draw(np.random.default_rng(0), 0)
@@ -190,7 +191,7 @@ def receive(iq: np.ndarray, cfg: ReceiverConfig, wf: Waveform, seed, first_chirp
     scaled to sqrt(W), plus leakage (if configured) plus thermal noise. complex64; chunk-independent."""
     iq = np.asarray(iq)
     if iq.ndim != 2 or iq.shape[1] != wf.samples_per_chirp:
-        raise ValueError(f"IQ must be [chirps, {wf.samples_per_chirp}], got {iq.shape}")
+        raise InputError(f"IQ must be [chirps, {wf.samples_per_chirp}], got {iq.shape}")
     c = iq.shape[0]
     out = scale_to_receiver(iq, cfg)
     if cfg.leakage is not None:

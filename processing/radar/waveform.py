@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from processing.errors import InputError
+
 C0 = 299_792_458.0  # speed of light [m/s]
 
 
@@ -37,17 +39,17 @@ class Waveform(BaseModel):
     @model_validator(mode="after")
     def _consistent(self) -> "Waveform":
         if self.bandwidth_hz >= 2 * self.carrier_hz:
-            raise ValueError(f"bandwidth_hz ({self.bandwidth_hz:g} Hz) must be below twice carrier_hz: the "
+            raise InputError(f"bandwidth_hz ({self.bandwidth_hz:g} Hz) must be below twice carrier_hz: the "
                              "sweep f0 - B/2 .. f0 + B/2 would pass through 0 Hz")
         if self.chirp_s > self.pri_s * (1 + 1e-9):
-            raise ValueError(f"chirp_duration_s ({self.chirp_s:g} s) must not exceed pri_s ({self.pri_s:g} s)")
+            raise InputError(f"chirp_duration_s ({self.chirp_s:g} s) must not exceed pri_s ({self.pri_s:g} s)")
         if self.samples_per_chirp / self.fs > self.chirp_s * (1 + 1e-9):
-            raise ValueError(
+            raise InputError(
                 f"adc_rate_hz too low: {self.samples_per_chirp} samples at {self.fs:g} Hz last longer "
                 f"than the chirp ({self.chirp_s:g} s)")
         needed = self.slope * 2 * self.max_range_m / C0
         if self.fs < needed:
-            raise ValueError(
+            raise InputError(
                 f"adc_rate_hz ({self.fs:g} Hz) is below the {needed:g} Hz beat frequency of "
                 f"max_range_m = {self.max_range_m:g} m")
         return self

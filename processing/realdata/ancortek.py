@@ -215,11 +215,11 @@ def write_dat(path: str | Path, iq, wf: Waveform, digits: int = 9) -> Path:
     """
     chans = [np.asarray(a) for a in (iq if isinstance(iq, (list, tuple)) else [iq])]
     if any(a.shape != chans[0].shape or a.ndim != 2 for a in chans):
-        raise ValueError("every channel must be an [n_chirps, n_samples] array of the same shape")
+        raise InputError("every channel must be an [n_chirps, n_samples] array of the same shape")
     if chans[0].shape[1] != wf.samples_per_chirp:
-        raise ValueError(f"IQ has {chans[0].shape[1]} samples per chirp, waveform says {wf.samples_per_chirp}")
+        raise InputError(f"IQ has {chans[0].shape[1]} samples per chirp, waveform says {wf.samples_per_chirp}")
     if abs(wf.chirp_s - wf.pri_s) > 1e-12 * wf.pri_s:
-        raise ValueError("the .dat format has no idle time: chirp duration must equal the PRI")
+        raise InputError("the .dat format has no idle time: chirp duration must equal the PRI")
     flat = np.stack([a.reshape(-1) for a in chans], axis=1).reshape(-1)
     fmt = f"%.{digits - 1}e"
     re_s = np.char.mod(fmt, flat.real.astype(np.float64))
@@ -281,17 +281,17 @@ def recording_samples(paths, links, dsp=None, n_channels: int = 1, conjugate: bo
             out.append((p.stem, {ln: sig_dict(rec.iq[i], rec.waveform) for i, ln in enumerate(links)}))
         return out
     if n_channels != 1:
-        raise ValueError(f"files hold {n_channels} channels but the model needs {len(links)} links")
+        raise InputError(f"files hold {n_channels} channels but the model needs {len(links)} links")
     samples: dict[str, dict] = {}
     for p in paths:
         hit = [ln for ln in links if ln.lower() in p.stem.lower()]
         if len(hit) != 1:
-            raise ValueError(f"{p.name}: cannot tell which link it is; name files like NAME_{links[0]}.dat")
+            raise InputError(f"{p.name}: cannot tell which link it is; name files like NAME_{links[0]}.dat")
         key = re.sub(re.escape(hit[0]), "", p.stem, flags=re.IGNORECASE).strip("_- .")
         rec = read_dat(p, conjugate=conjugate, allow_partial=allow_partial)
         samples.setdefault(key, {})[hit[0]] = sig_dict(rec.iq[0], rec.waveform)
     for key, s in samples.items():
         if len(s) != len(links):
             missing = sorted(set(links) - set(s))
-            raise ValueError(f"recording {key!r} has no file for link {missing[0]!r}")
+            raise InputError(f"recording {key!r} has no file for link {missing[0]!r}")
     return sorted(samples.items())

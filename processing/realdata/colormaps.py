@@ -16,6 +16,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import cKDTree
 
+from processing.errors import InputError
+
 
 
 def matlab_jet(m: int = 256) -> np.ndarray:
@@ -48,7 +50,7 @@ def colormap_rgb(name: str, n: int = 256) -> np.ndarray:
         cmap = matplotlib.colormaps[name]
     except KeyError:
         known = ", ".join(_MATLAB)
-        raise ValueError(f"unknown colormap {name!r} (use {known} or a matplotlib colormap name)") from None
+        raise InputError(f"unknown colormap {name!r} (use {known} or a matplotlib colormap name)") from None
     return np.asarray(cmap.resampled(n)(np.arange(n)), dtype=np.float64)[:, :3]
 
 
@@ -79,7 +81,7 @@ class ColormapInverse:
         where = (starts + ends) / 2.0  # entry index each distinct colour stands for
         self.floor_position = float(where[0])  # where the bottom colour (entry 0) reads
         if anchors.shape[0] == 1:
-            raise ValueError(f"colormap {name!r} has a single colour")
+            raise InputError(f"colormap {name!r} has a single colour")
         u = np.linspace(0.0, anchors.shape[0] - 1.0, (anchors.shape[0] - 1) * substeps + 1)
         k = np.minimum(np.floor(u).astype(int), anchors.shape[0] - 2)
         frac = u - k

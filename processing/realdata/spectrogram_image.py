@@ -37,6 +37,7 @@ from scipy.ndimage import distance_transform_edt
 from processing.realdata.ancortek import GLASGOW_ACTIVITY_CODES
 from processing.realdata.colormaps import colormap_inverse
 from processing.dsp.signatures import DSPConfig, Signature, _normalise, mean_velocity
+from processing.errors import InputError
 
 # Colour distance (Euclidean, 8-bit levels) within which a pixel counts as a colormap colour: renderers
 # truncate (or round) 255 c, i.e. <= 1 level per channel, sqrt(3) ~ 1.7 in all; 6 leaves room for
@@ -80,16 +81,16 @@ class ImageLayout(BaseModel):
     @model_validator(mode="after")
     def _check(self) -> "ImageLayout":
         if not (self.box_top < self.box_bottom < self.height and self.box_left < self.box_right < self.width):
-            raise ValueError(f"plot box rows {self.box_top}-{self.box_bottom}, columns {self.box_left}-"
+            raise InputError(f"plot box rows {self.box_top}-{self.box_bottom}, columns {self.box_left}-"
                              f"{self.box_right} must be ordered and inside the {self.width}x{self.height} image")
         if self.frame_rgb is not None and (min(self.box_top, self.box_left) < 1 or self.box_bottom > self.height - 2
                                            or self.box_right > self.width - 2):
-            raise ValueError("a frame needs one pixel round the plot box inside the image")
+            raise InputError("a frame needs one pixel round the plot box inside the image")
         if self.velocity_top == self.velocity_bottom or not self.time_left < self.time_right:
-            raise ValueError("velocity_top must differ from velocity_bottom and time_left < time_right")
+            raise InputError("velocity_top must differ from velocity_bottom and time_left < time_right")
         for c in (self.frame_rgb or (0, 0, 0)) + self.background_rgb:
             if not 0 <= c <= 255:
-                raise ValueError(f"colour component {c} outside 0-255")
+                raise InputError(f"colour component {c} outside 0-255")
         return self
 
     @property
@@ -236,7 +237,7 @@ def _checked_inverse(cmap: str, n: int, tolerance: float):
     inv = colormap_inverse(cmap, n)
     pair = inv.ambiguity(tolerance)
     if pair is not None:
-        raise ValueError(f"colormap {cmap!r} is not invertible: entries {pair[0]} and {pair[1]} look alike")
+        raise InputError(f"colormap {cmap!r} is not invertible: entries {pair[0]} and {pair[1]} look alike")
     return inv
 
 
@@ -244,7 +245,7 @@ def cell_edges(centres: np.ndarray, what: str = "axis") -> np.ndarray:
     """Edges [n + 1] of the cells around ascending centres [n] (midpoints; half a spacing beyond the ends)."""
     c = np.asarray(centres, dtype=np.float64)
     if c.ndim != 1 or c.size < 2 or not np.all(np.isfinite(c)) or np.any(np.diff(c) <= 0):
-        raise ValueError(f"{what} must be a finite, strictly ascending 1-D array of 2 or more values")
+        raise InputError(f"{what} must be a finite, strictly ascending 1-D array of 2 or more values")
     mid = (c[1:] + c[:-1]) / 2
     return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
 
@@ -257,7 +258,7 @@ def remap_matrix(src_edges: np.ndarray, dst_centres: np.ndarray, what: str = "ax
     dst = cell_edges(dst_centres, what)
     c = np.asarray(dst_centres, dtype=np.float64)
     if c[0] < lo - 1e-9 * (hi - lo) or c[-1] > hi + 1e-9 * (hi - lo):
-        raise ValueError(f"requested {what} {c[0]:.4g} to {c[-1]:.4g} is outside the image's {lo:.4g} to {hi:.4g}")
+        raise InputError(f"requested {what} {c[0]:.4g} to {c[-1]:.4g} is outside the image's {lo:.4g} to {hi:.4g}")
     d_lo, d_hi = np.clip(dst[:-1], lo, hi), np.clip(dst[1:], lo, hi)
     overlap = np.clip(np.minimum(d_hi[:, None], src_edges[None, 1:])
                       - np.maximum(d_lo[:, None], src_edges[None, :-1]), 0, None)
@@ -295,17 +296,17 @@ def read_spectrogram_image(source, layout: ImageLayout, *, velocity: np.ndarray 
 
 def _read(rgb, name, layout, velocity, time, floor, max_dist, max_off) -> ImageSpectrogram:
     if floor not in ("zero", "keep"):
-        raise ValueError(f"floor must be 'zero' or 'keep', not {floor!r}")
+        raise InputError(f"floor must be 'zero' or 'keep', not {floor!r}")
     inv = _checked_inverse(layout.colormap, layout.colormap_size, float(max_dist))
     if rgb.shape[:2] != (layout.height, layout.width):
-        raise ValueError(f"image is {rgb.shape[1]}x{rgb.shape[0]} px, the layout expects "
+        raise InputError(f"image is {rgb.shape[1]}x{rgb.shape[0]} px, the layout expects "
                          f"{layout.width}x{layout.height}")
     box = rgb[layout.box_top:layout.box_bottom + 1, layout.box_left:layout.box_right + 1]
     pos, dist = inv.invert(box)
     off = dist > max_dist
     frac = float(off.mean())
     if frac > max_off:
-        raise ValueError(f"{frac:.1%} of the plot box ({int(off.sum())} px) is off the {layout.colormap} colormap "
+        raise InputError(f"{frac:.1%} of the plot box ({int(off.sum())} px) is off the {layout.colormap} colormap "
                          f"(tolerated {max_off:.1%}): wrong layout or colormap, or not a spectrogram")
     if off.any():  # tick marks and the like: take the nearest on-map pixel's colour
         idx = distance_transform_edt(off, return_distances=False, return_indices=True)

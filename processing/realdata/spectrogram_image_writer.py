@@ -24,6 +24,7 @@ from processing.atomic import atomic_path
 from processing.realdata.colormaps import colormap_inverse
 from processing.dsp.signatures import Signature
 from processing.realdata.spectrogram_image import ImageLayout, SpectrogramImageError, cell_edges
+from processing.errors import InputError
 
 
 def _colour_indices(db: np.ndarray, top_db: float, layout: ImageLayout) -> np.ndarray:
@@ -42,9 +43,9 @@ def render_box(velocity: np.ndarray, time: np.ndarray, db: np.ndarray, layout: I
     velocity, time = np.asarray(velocity, dtype=np.float64), np.asarray(time, dtype=np.float64)
     v_edges, t_edges = cell_edges(velocity, "velocity"), cell_edges(time, "time")
     if db.shape != (v_edges.size - 1, t_edges.size - 1):
-        raise ValueError(f"dB grid is {db.shape}, axes give ({v_edges.size - 1}, {t_edges.size - 1})")
+        raise InputError(f"dB grid is {db.shape}, axes give ({v_edges.size - 1}, {t_edges.size - 1})")
     if np.isnan(db).any() or np.isposinf(db).any():
-        raise ValueError("dB grid holds NaN or +inf")
+        raise InputError("dB grid holds NaN or +inf")
     finite = db[np.isfinite(db)]
     top = (float(finite.max()) if finite.size else 0.0) if top_db is None else float(top_db)
     v_pix, t_pix = layout.row_velocity(), layout.column_time()
@@ -60,7 +61,7 @@ def render_box(velocity: np.ndarray, time: np.ndarray, db: np.ndarray, layout: I
         tt = np.clip(t_pix, time[0], time[-1])
         vals = interp(np.stack(np.meshgrid(vv, tt, indexing="ij"), axis=-1))
     else:
-        raise ValueError(f"interpolation must be 'nearest' or 'linear', not {interpolation!r}")
+        raise InputError(f"interpolation must be 'nearest' or 'linear', not {interpolation!r}")
     idx = np.where(inside, _colour_indices(vals, top, layout), 0)
     return colormap_inverse(layout.colormap, layout.colormap_size).entries[idx]
 
@@ -104,11 +105,11 @@ def render_image(velocity: np.ndarray, time: np.ndarray, layout: ImageLayout, *,
     from matplotlib.figure import Figure
 
     if (db is None) == (power is None):
-        raise ValueError("give exactly one of db and power")
+        raise InputError("give exactly one of db and power")
     if db is None:
         power = np.asarray(power, dtype=np.float64)
         if np.isnan(power).any() or (power < 0).any():
-            raise ValueError("power must be >= 0 and not NaN")
+            raise InputError("power must be >= 0 and not NaN")
         with np.errstate(divide="ignore"):
             db = 10.0 * np.log10(power)
     box = render_box(velocity, time, db, layout, top_db=top_db, interpolation=interpolation)

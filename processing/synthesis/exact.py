@@ -23,6 +23,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline
 from processing.pathset import PathSet
 from processing.radar.receiver import ReceiverConfig, receive
 from processing.radar.waveform import C0, Waveform
+from processing.errors import InputError
 
 
 class NyquistWarning(UserWarning):
@@ -181,7 +182,7 @@ def grid_pieces(paths: PathSet) -> tuple:
 def uses_grid(paths: PathSet, method: str = "auto") -> bool:
     """Whether `iter_synthesis` takes the gridded route for this path set and method."""
     if method not in ("auto", "exact", "grid"):
-        raise ValueError(f"synthesis method must be auto, exact or grid, got {method!r}")
+        raise InputError(f"synthesis method must be auto, exact or grid, got {method!r}")
     return paths.n_frames >= 2 and (method == "grid" or (method == "auto" and paths.n_paths >= GRID_MIN_PATHS))
 
 
@@ -214,7 +215,7 @@ def iter_weighted(paths: PathSet, wf: Waveform, weights: np.ndarray | None = Non
     if weights is not None:
         weights = np.asarray(weights, dtype=np.complex128)
         if weights.ndim != 2 or weights.shape[0] != n:
-            raise ValueError(f"weights must be [{n}, K] (samples per chirp, outputs), got {weights.shape}")
+            raise InputError(f"weights must be [{n}, K] (samples per chirp, outputs), got {weights.shape}")
     use_grid = uses_grid(paths, method)
     reported: set = set()
     if use_grid:

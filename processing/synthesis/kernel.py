@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import chebyshev
 
+from processing.errors import InputError
+
 OVERSAMPLE = 4  # grid cells per range bin (M / N)
 WIDTH = 8  # kernel support [cells]
 DRIFT = 0.25  # largest drift [cells] of a path from its reference cell before the cell is re-chosen
@@ -96,7 +98,7 @@ def _error_bound(k: SpreadKernel) -> float:
 def spread_kernel(oversample: int = OVERSAMPLE, width: int = WIDTH, drift: float = DRIFT) -> SpreadKernel:
     """Design the kernel (beta, fitted weights); cached. Its `error_bound` is computed on first use."""
     if oversample < 2 or width < 2 or width % 2 or not 0 <= drift <= 0.5:
-        raise ValueError(f"need oversample >= 2, an even width >= 2 and 0 <= drift <= 0.5, got {oversample}, "
+        raise InputError(f"need oversample >= 2, an even width >= 2 and 0 <= drift <= 0.5, got {oversample}, "
                          f"{width}, {drift}")
     beta = 0.97 * math.pi * width * (1 - 0.5 / oversample)
     k = SpreadKernel(oversample, width, drift, beta, np.zeros((width + 2, DEGREE + 1)))

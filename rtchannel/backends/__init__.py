@@ -8,6 +8,8 @@ from __future__ import annotations
 import inspect
 import math
 
+from processing.errors import InputError
+
 BACKENDS = ("points", "facets", "sionna")
 MESH_BACKENDS = ("facets", "sionna")
 # keywords the pipeline or the dataset runner sets itself; users never pass them as options
@@ -28,7 +30,7 @@ def backend_function(backend: str):
         from rtchannel.backends.sionna_rt import sionna_paths
 
         return sionna_paths
-    raise ValueError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+    raise InputError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
 
 
 def unknown_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> list[str]:
@@ -41,7 +43,7 @@ def check_options(backend: str, options: dict, reserved: tuple[str, ...] = RESER
     """Raise ValueError naming the first option the backend does not accept (or that is reserved)."""
     bad = unknown_options(backend, options, reserved)
     if bad:
-        raise ValueError(f"backend '{backend}' has no option '{bad[0]}'")
+        raise InputError(f"backend '{backend}' has no option '{bad[0]}'")
 
 
 def check_option_values(backend: str, options: dict) -> None:
@@ -54,15 +56,15 @@ def check_option_values(backend: str, options: dict) -> None:
     hints = typing.get_type_hints(backend_function(backend))
     for name, value in options.items():
         if isinstance(value, (dict, list, tuple, set)):
-            raise ValueError(f"backend option '{name}': expected a single value, got a {type(value).__name__}")
+            raise InputError(f"backend option '{name}': expected a single value, got a {type(value).__name__}")
         hint = hints.get(name)
         if hint is None or name == "scene":
             continue
         try:
             TypeAdapter(hint).validate_python(value, strict=False)
         except ValidationError as e:
-            raise ValueError(f"backend option '{name}' = {value!r}: {e.errors()[0]['msg']}") from None
+            raise InputError(f"backend option '{name}' = {value!r}: {e.errors()[0]['msg']}") from None
         except Exception:  # noqa: BLE001 - an annotation pydantic cannot check (a library object): skip
             continue
         if isinstance(value, float) and not math.isfinite(value):
-            raise ValueError(f"backend option '{name}' = {value!r}: must be finite")
+            raise InputError(f"backend option '{name}' = {value!r}: must be finite")

@@ -76,6 +76,7 @@ from rtchannel.backends.facet_assemble import assemble, link_gains, merge_batche
 from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases
 from rtchannel.backends.visibility import batch_visibility, caster_for, check_body_clearance
 from rtchannel.body.skinning import face_normals_and_areas
+from processing.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -121,7 +122,7 @@ def trace_frame_indices(n_frames: int, fps: float, trace_fps: float | None) -> n
     if trace_fps is None or trace_fps >= fps:
         return np.arange(n_frames)
     if not trace_fps > 0:
-        raise ValueError(f"trace_fps must be positive, got {trace_fps}")
+        raise InputError(f"trace_fps must be positive, got {trace_fps}")
     step = fps / trace_fps
     idx = np.round(np.arange(0.0, n_frames - 1, step)).astype(int)
     return np.unique(np.concatenate([idx, [n_frames - 1]]))
@@ -179,7 +180,7 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         ValueError: a positive `min_relative_gain_db`, or an image mesh with more faces than the mesh.
     """
     if min_relative_gain_db is not None and not min_relative_gain_db <= 0:
-        raise ValueError(f"min_relative_gain_db must be <= 0 dB (relative to the strongest path), got "
+        raise InputError(f"min_relative_gain_db must be <= 0 dB (relative to the strongest path), got "
                          f"{min_relative_gain_db}")
     vertices = np.asarray(vertices, float)
     faces = np.asarray(faces, np.int64)
@@ -199,7 +200,7 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     if walls and image_mesh is not None:
         v_c, f_c, vel_c = image_mesh
         if len(f_c) > len(faces):
-            raise ValueError(f"the image mesh has more faces ({len(f_c)}) than the mesh ({len(faces)})")
+            raise InputError(f"the image mesh has more faces ({len(f_c)}) than the mesh ({len(faces)})")
         meshes.append((np.asarray(v_c, float), np.asarray(f_c, np.int64), vel_c, False, True))
     double = double_bounce_pairs(double_bounce, walls)
     antennas = [link.antennas() for link in links]
@@ -236,7 +237,7 @@ def double_bounce_pairs(double_bounce: bool | str | None, walls) -> list[tuple[i
     if isinstance(double_bounce, str) and double_bounce in names:
         w = names.index(double_bounce)
         return [(w, w)]
-    raise ValueError(f"double_bounce must be true, false, 'same', 'pairs', 'floor' or a wall name {names}, "
+    raise InputError(f"double_bounce must be true, false, 'same', 'pairs', 'floor' or a wall name {names}, "
                      f"got {double_bounce!r}")
 
 
@@ -330,10 +331,10 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
                                                             sionna=False)
     avatar = load_avatar(lod)
     if len(rt.body_faces) != avatar.n_faces:
-        raise ValueError(f"scene body has {len(rt.body_faces)} triangles but LOD {lod!r} has {avatar.n_faces}")
+        raise InputError(f"scene body has {len(rt.body_faces)} triangles but LOD {lod!r} has {avatar.n_faces}")
     coarse = load_avatar(image_lod) if walls and image_lod not in (None, lod) else None
     if coarse is not None and coarse.n_faces > avatar.n_faces:
-        raise ValueError(f"image_lod {image_lod!r} ({coarse.n_faces} triangles) is finer than lod {lod!r}")
+        raise InputError(f"image_lod {image_lod!r} ({coarse.n_faces} triangles) is finer than lod {lod!r}")
     timing = {} if timing is None else timing
     t0 = time.perf_counter()
     # Positions and velocities in one blend: skinning is linear in the joint matrices.

@@ -21,6 +21,7 @@ from rtchannel.radar import RadarConfig
 from rtchannel.body.scatterers import PointScatterers, seed_scatterers
 from rtchannel.motion.pose import Motion
 from rtchannel.errors import RadarPlacementError
+from processing.errors import InputError
 
 
 def link_delays(points: np.ndarray, tx: np.ndarray, rx: np.ndarray) -> np.ndarray:
@@ -83,9 +84,9 @@ def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = N
     traj = scatterer_trajectories(motion, sc) if trajectories is None else trajectories
     g = sc.gains if gains is None else np.asarray(gains, dtype=np.complex128)
     if g.shape != (traj.shape[1],):
-        raise ValueError(f"gains must have one value per scatterer ({traj.shape[1]}), got shape {g.shape}")
+        raise InputError(f"gains must have one value per scatterer ({traj.shape[1]}), got shape {g.shape}")
     if scale not in ("radar", "seed"):
-        raise ValueError(f"points gain scale must be 'radar' or 'seed', got {scale!r}")
+        raise InputError(f"points gain scale must be 'radar' or 'seed', got {scale!r}")
     out = {}
     for link in radar.links:
         _check_clearance(traj, motion.times, link)

@@ -37,6 +37,7 @@ from processing.radar.waveform import C0
 from rtchannel.radar import Link, RadarConfig
 from rtchannel.scene.rt_scene import RTScene
 from rtchannel.scene.skin import SkinMaterial
+from processing.errors import InputError
 
 # A backend function maps (vertices [V, 3], faces [T, 3], radar) to {link name: PathSet} of one frame.
 BackendFn = Callable[[np.ndarray, np.ndarray, RadarConfig], dict[str, PathSet]]
@@ -133,7 +134,7 @@ def walk_body_rcs(backend: str = "facets", duration: float = 3.0, distance: floa
 
         paths = point_paths(motion, radar, **options)
     else:
-        raise ValueError(f"walk_body_rcs supports the facets and points backends, got {backend!r}")
+        raise InputError(f"walk_body_rcs supports the facets and points backends, got {backend!r}")
     per = {}
     for a, link in zip(azimuths_deg, links):
         coh, inc = frame_rcs(paths[link.name], radar.waveform.carrier_hz)

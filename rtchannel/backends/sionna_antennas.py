@@ -24,6 +24,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from processing.radar.antenna import local_power_gain, sionna_orientation
+from processing.errors import InputError
 
 _REGISTERED: set[str] = set()
 
@@ -102,7 +103,7 @@ def place_antennas(scene, links, radar=None) -> tuple[dict[str, tuple[int, int]]
     specs = [radar.antennas(lk) if radar is not None else (None, None) for lk in links]
     names = {(shape_key(t) if t is not None else "iso", shape_key(r) if r is not None else "iso") for t, r in specs}
     if len(names) != 1:
-        raise ValueError(f"place_antennas: links need one tx and one rx pattern shape per call, got {sorted(names)}")
+        raise InputError(f"place_antennas: links need one tx and one rx pattern shape per call, got {sorted(names)}")
     s = scene.sionna_scene
     for name in list(s.transmitters) + list(s.receivers):
         s.remove(name)

@@ -53,6 +53,7 @@ from scipy.constants import epsilon_0
 
 from processing.radar.propagation import FOUR_PI_1_5, path_amplitude  # noqa: F401 - the radar equation's home
 from rtchannel.backends import facet_kernels
+from processing.errors import InputError
 
 
 
@@ -169,7 +170,7 @@ def scattering_pattern(mat: SurfaceMaterial, k_i: np.ndarray, k_s: np.ndarray, n
         lam = mat.lambda_
         return (lam * lobe_r + (1 - lam) * lobe_i) / (lam * _f_alpha(mat.alpha_r, cos_i)
                                                       + (1 - lam) * _f_alpha(mat.alpha_i, cos_i))
-    raise ValueError(f"unknown scattering pattern {mat.pattern!r}")
+    raise InputError(f"unknown scattering pattern {mat.pattern!r}")
 
 
 def _dd2_exp(z: np.ndarray) -> np.ndarray:

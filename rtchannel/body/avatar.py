@@ -32,6 +32,7 @@ from processing.atomic import atomic_path
 from rtchannel.assets import avatar_dir
 from rtchannel.body.meshgeom import closest_points_on_mesh
 from rtchannel.motion.pose import JOINT_INDEX, JOINT_NAMES, SOLE_OFFSET_M, Rig, avatar_rig
+from processing.errors import InputError
 
 LOD_TARGETS = {"10k": 10_000, "5k": 5_000, "2k": 2_000}
 LODS = ("full", *LOD_TARGETS)
@@ -87,7 +88,7 @@ def load_avatar(lod: str = "full", height: float | None = None) -> Avatar:
     Arrays are shared between calls (cached): treat them as read-only.
     """
     if lod not in LODS:
-        raise ValueError(f"unknown level of detail {lod!r}; choose one of {', '.join(LODS)}")
+        raise InputError(f"unknown level of detail {lod!r}; choose one of {', '.join(LODS)}")
     av = _full_avatar() if lod == "full" else _lod_avatar(lod)
     return av if height is None else av.scaled(height)
 
@@ -106,7 +107,7 @@ def _read_body_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
             elif line.startswith("f ") and group == "body":
                 quads.append([int(tok.split("/")[0]) - 1 for tok in line.split()[1:]])
     if any(len(q) != 4 for q in quads):
-        raise ValueError(f"{path}: group 'body' is expected to hold quads only")
+        raise InputError(f"{path}: group 'body' is expected to hold quads only")
     return np.asarray(verts), np.asarray(quads, dtype=np.int64)
 
 
@@ -115,7 +116,7 @@ def _read_weights(path: Path, n_vertices: int) -> sparse.csr_matrix:
     rows, cols, vals = [], [], []
     for bone, pairs in raw.items():
         if bone not in JOINT_INDEX:
-            raise ValueError(f"{path}: weights for unknown bone {bone!r}")
+            raise InputError(f"{path}: weights for unknown bone {bone!r}")
         arr = np.asarray(pairs, dtype=float).reshape(-1, 2)
         rows.append(arr[:, 0].astype(np.int64))
         cols.append(np.full(len(arr), JOINT_INDEX[bone]))
@@ -132,7 +133,7 @@ def _normalise_rows(w: sparse.csr_matrix) -> sparse.csr_matrix:
     w.eliminate_zeros()
     s = np.asarray(w.sum(axis=1)).ravel()
     if (s <= 0).any():
-        raise ValueError(f"{int((s <= 0).sum())} vertices have no skinning weight")
+        raise InputError(f"{int((s <= 0).sum())} vertices have no skinning weight")
     return sparse.diags(1.0 / s) @ w
 
 

@@ -23,6 +23,7 @@ from scipy.interpolate import CubicSpline
 from rtchannel.body.avatar import Avatar
 from rtchannel.body.meshgeom import vertex_face_incidence
 from rtchannel.motion.pose import Motion, blend_points  # noqa: F401 - LBS lives with the pose
+from processing.errors import InputError
 
 DEGENERATE_AREA_M2 = 1e-12  # below this a triangle's normal is not trusted (1 um^2)
 
@@ -65,7 +66,7 @@ def matrix_derivatives(motion: Motion, method: str = "spline") -> np.ndarray:
         return CubicSpline(motion.times, a, axis=0)(motion.times, 1)
     if method == "central":
         return np.gradient(a, 1.0 / motion.fps, axis=0, edge_order=2)
-    raise ValueError(f"unknown velocity method {method!r} (use 'spline' or 'central')")
+    raise InputError(f"unknown velocity method {method!r} (use 'spline' or 'central')")
 
 
 def skin_vertices(avatar: Avatar, motion: Motion, frames=None) -> np.ndarray:

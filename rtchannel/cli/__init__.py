@@ -1,7 +1,10 @@
 """The `rtchannel` command line: a thin layer over the Python API, one module per command.
 
-Errors in user input (`UserError`, `rtchannel.errors.USER_ERRORS`, OSError naming a file): one line on
-stderr, exit status 2. Command modules import their heavy dependencies inside the command, so `rtchannel simulate --backend points` never loads torch or Mitsuba.
+Errors: user errors (`UserError`, the `InputError` family and pydantic validation errors collected in
+`rtchannel.errors.USER_ERRORS`, an OSError naming a file) are one line on stderr with exit status 2.
+Anything else is a bug: one line saying so, exit status 1, and the traceback with ``--debug`` or
+``RTCHANNEL_DEBUG=1``. Command modules import their heavy dependencies inside the command, so
+`rtchannel simulate --backend points` never loads torch or Mitsuba.
 """
 from __future__ import annotations
 
@@ -16,6 +19,9 @@ from processing.errors import one_line
 from rtchannel.cli.common import EXIT_USAGE, OneLineParser, UserError, validation_line
 from rtchannel.errors import USER_ERRORS
 
+EXIT_BUG = 1
+DEBUG_ENV = "RTCHANNEL_DEBUG"
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand registered."""
@@ -28,6 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
     from rtchannel.cli.simulate import add_simulate
 
     parser = OneLineParser(prog="rtchannel", description="Motion-capture driven MIMO radar simulator.")
+    parser.add_argument("--debug", action="store_true", help="on an internal error, print the full traceback "
+                        f"(also: {DEBUG_ENV}=1)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (add_simulate, add_render, add_dataset, add_classifier_commands, add_compare, add_bench,
                 add_data):
@@ -58,13 +66,12 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as e:  # unreadable input, unwritable output, full disk: name the file, no traceback
         where = f"{e.filename}: " if getattr(e, "filename", None) else ""
         print(f"error: {where}{one_line(e.strerror or e, 500)}", file=sys.stderr)
-    except ValueError as e:
-        print(f"error: {one_line(e, 500)}", file=sys.stderr)
-    except Exception as e:  # noqa: BLE001 - any library failure surfaces as one clear line
-        if type(e).__name__ == "LLVMNotFoundError":
-            print(f"error: {e}", file=sys.stderr)
-        else:
+    except Exception as e:  # noqa: BLE001 - not the user's fault: a bug, said as such
+        if args.debug or os.environ.get(DEBUG_ENV, "") not in ("", "0"):
             raise
+        print(f"error: internal error (a bug in rtchannel, not in your input): {type(e).__name__}: "
+              f"{one_line(e, 300)}; run again with --debug or {DEBUG_ENV}=1 for the traceback", file=sys.stderr)
+        return EXIT_BUG
     return EXIT_USAGE
 
 
@@ -97,4 +104,4 @@ def run(argv: list[str] | None = None) -> int:
     return rc
 
 
-__all__ = ["main", "run", "build_parser", "UserError", "EXIT_USAGE", "USER_ERRORS", "FAST_EXIT_COMMANDS"]
+__all__ = ["main", "run", "build_parser", "UserError", "EXIT_USAGE", "EXIT_BUG", "DEBUG_ENV", "USER_ERRORS", "FAST_EXIT_COMMANDS"]

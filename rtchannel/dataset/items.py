@@ -23,6 +23,7 @@ from rtchannel.dataset.plan import WorkItem
 from rtchannel.radar import RadarConfig
 from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
 from rtchannel.motion.pose import Motion, avatar_rig
+from processing.errors import InputError
 
 _CACHE_SIZE = 8
 _MOTIONS: OrderedDict[str, Motion] = OrderedDict()
@@ -198,7 +199,7 @@ def run_shared(items: list[WorkItem]) -> list[dict]:
     from rtchannel.pipeline import simulate_radars
 
     if len({shared_key(it) for it in items}) != 1:
-        raise ValueError("run_shared needs items of one shared_key")
+        raise InputError("run_shared needs items of one shared_key")
     jobs = [_Job(it) for it in items]
     first = items[0]
     with warnings.catch_warnings(record=True) as caught:

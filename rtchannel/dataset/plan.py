@@ -25,6 +25,7 @@ from rtchannel.errors import ConfigError
 from rtchannel.dataset.plan_schema import (  # noqa: F401 - the schema, re-exported with its loader
     Clutter, GainSet, LinkSet, MotionLayer, PhysicalLayer, Plan, SignalLayer, Source, Storage, for_activity)
 from rtchannel.dataset.plan_yaml import check_backend_options, count_items, read_plan_yaml
+from processing.errors import InputError
 
 MOTION_SUFFIXES = (".bvh", ".c3d")
 PRESETS_DIR = Path(__file__).with_name("presets")
@@ -163,7 +164,7 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
                     ProceduralParams(**params)
                 except ValidationError as e:
                     err = e.errors()[0]
-                    raise ValueError(f"motion.sources.{si}.params.{'.'.join(map(str, err['loc'])) or '(root)'}: "
+                    raise InputError(f"motion.sources.{si}.params.{'.'.join(map(str, err['loc'])) or '(root)'}: "
                                      f"{err['msg']} (drawn value {err.get('input')!r})") from None
                 # generator seed (mod 3) = fall direction 0 forward, 1 left, 2 right, cycled over the variants
                 fall = ("forward", "left", "right").index(src.fall_directions[v % len(src.fall_directions)])
@@ -174,7 +175,7 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
             for v, (f, rel) in enumerate(_labelled_files(src)):
                 act = f.parent.name if src.activity == "from_folder" else src.activity
                 if act not in ACTIVITIES:
-                    raise ValueError(f"motion file {f}: folder name {act!r} is not an activity "
+                    raise InputError(f"motion file {f}: folder name {act!r} is not an activity "
                                      f"({', '.join(ACTIVITIES)})")
                 base = {"kind": "file", "activity": act, "path": str(f), "options": dict(src.options)}
                 if src.trim is not None:

@@ -10,7 +10,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from processing.dsp.signatures import DSPConfig
-from processing.errors import one_line
+from processing.errors import InputError, one_line
 from processing.radar.waveform import Waveform
 from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
@@ -27,7 +27,7 @@ def _within(v, lo: float, hi: float, name: str, unit: str = ""):
     """`v` (a value or a (low, high) range) when every value lies in [lo, hi]; ValueError naming it otherwise."""
     for x in (v if isinstance(v, tuple) else (v,)):
         if not lo <= x <= hi:
-            raise ValueError(f"{name} {x}{unit} outside {lo:g}-{hi:g}{unit}")
+            raise InputError(f"{name} {x}{unit} outside {lo:g}-{hi:g}{unit}")
     return v
 
 
@@ -40,7 +40,7 @@ def _per_activity(v: dict, name: str) -> dict:
     """`v` when its keys are activities or '*'; ValueError naming the first other key."""
     for k in v:
         if k != "*" and k not in ACTIVITIES:
-            raise ValueError(f"{name}: {k!r} is not an activity ({', '.join(ACTIVITIES)}) or '*'")
+            raise InputError(f"{name}: {k!r} is not an activity ({', '.join(ACTIVITIES)}) or '*'")
     return v
 
 
@@ -68,22 +68,22 @@ class Source(_Model):
     @model_validator(mode="after")
     def _one_kind(self) -> "Source":
         if (self.procedural is None) == (self.files is None):
-            raise ValueError("give exactly one of 'procedural' (an activity) or 'files' (a path)")
+            raise InputError("give exactly one of 'procedural' (an activity) or 'files' (a path)")
         if self.procedural is not None:
             if self.trim is not None:
-                raise ValueError("trim applies to motion files; procedural motions take params (duration, pads)")
+                raise InputError("trim applies to motion files; procedural motions take params (duration, pads)")
             bad = sorted(set(self.params) - (set(ProceduralParams.model_fields) - _RESERVED_PROC))
             if bad:
-                raise ValueError(f"params: {bad[0]!r} is not a procedural parameter here (height, heading, "
+                raise InputError(f"params: {bad[0]!r} is not a procedural parameter here (height, heading, "
                                  f"start, mirror, seed and fps belong to the motion layer)")
         else:
             if self.activity is None:
-                raise ValueError("files: 'activity' is required (an activity or 'from_folder')")
+                raise InputError("files: 'activity' is required (an activity or 'from_folder')")
             if self.activity != "from_folder" and self.activity not in ACTIVITIES:
-                raise ValueError(f"activity must be one of {', '.join(ACTIVITIES)} or 'from_folder'")
+                raise InputError(f"activity must be one of {', '.join(ACTIVITIES)} or 'from_folder'")
             bad = sorted(set(self.options) - {"units", "up", "align", "floor", "max_gap_s", "on_long_gap"})
             if bad:
-                raise ValueError(f"options: {bad[0]!r} is not a load_motion option")
+                raise InputError(f"options: {bad[0]!r} is not a load_motion option")
         return self
 
 
@@ -118,7 +118,7 @@ class MotionLayer(_Model):
     def _clips(cls, v):
         for k, x in _per_activity(v, "clip_s").items():
             if not 0.5 <= x <= 600:
-                raise ValueError(f"clip_s.{k}: {x} s outside 0.5-600 s")
+                raise InputError(f"clip_s.{k}: {x} s outside 0.5-600 s")
         return v
 
     @field_validator("clip_start_s")
@@ -140,7 +140,7 @@ class MotionLayer(_Model):
             try:
                 self.idle.scaled(hi)
             except ValidationError as e:
-                raise ValueError(f"idle_scale {hi} takes the idle amplitudes out of range: {one_line(e)}") from None
+                raise InputError(f"idle_scale {hi} takes the idle amplitudes out of range: {one_line(e)}") from None
         return self
 
     @field_validator("walk_turn_s")
@@ -153,7 +153,7 @@ class MotionLayer(_Model):
     def _ranges(cls, v):
         for x in v:
             if isinstance(x, tuple) and not x[0] <= x[1]:
-                raise ValueError(f"range {list(x)} must be [low, high] with low <= high")
+                raise InputError(f"range {list(x)} must be [low, high] with low <= high")
         return v
 
     @field_validator("heights")
@@ -162,7 +162,7 @@ class MotionLayer(_Model):
         for x in v:
             for h in ((x,) if not isinstance(x, tuple) else x):
                 if h is not None and not 1.2 <= h <= 2.2:
-                    raise ValueError(f"height {h} m outside 1.2-2.2 m")
+                    raise InputError(f"height {h} m outside 1.2-2.2 m")
         return v
 
     @field_validator("time_scales")
@@ -170,7 +170,7 @@ class MotionLayer(_Model):
     def _time_scales(cls, v):
         for x in v:
             if min(x if isinstance(x, tuple) else (x,)) <= 0:
-                raise ValueError("time scales must be positive")
+                raise InputError("time scales must be positive")
         return v
 
     @field_validator("mirror")
@@ -178,7 +178,7 @@ class MotionLayer(_Model):
     def _mirror(cls, v):
         for x in v:
             if not isinstance(x, bool) and not 0 <= x <= 1:
-                raise ValueError("mirror entries are true/false or a probability in [0, 1]")
+                raise InputError("mirror entries are true/false or a probability in [0, 1]")
         return v
 
 
@@ -193,7 +193,7 @@ class LinkSet(_Model):
     def _unique(cls, v):
         names = [link.name for link in v]
         if len(set(names)) != len(names):
-            raise ValueError(f"link names must be unique, got {names}")
+            raise InputError(f"link names must be unique, got {names}")
         return v
 
 
@@ -237,13 +237,13 @@ class PhysicalLayer(_Model):
     @model_validator(mode="after")
     def _angles(self) -> "PhysicalLayer":
         if self.directions is not None and self.angles_deg is not None:
-            raise ValueError("give either 'directions' or 'angles_deg', not both")
+            raise InputError("give either 'directions' or 'angles_deg', not both")
         if isinstance(self.directions, list):
             for d in self.directions:
                 direction_angles(d)  # raises a ValueError naming the bad direction
         names = [s.name for s in self.link_sets]
         if len(set(names)) != len(names):
-            raise ValueError(f"link set names must be unique, got {names}")
+            raise InputError(f"link set names must be unique, got {names}")
         return self
 
     def rotations(self) -> list[tuple[float, int | None]]:
@@ -271,9 +271,9 @@ class GainSet(_Model):
     def _names(cls, v):
         bad = sorted(set(v) - set(SCATTERER_NAMES))
         if bad:
-            raise ValueError(f"unknown scatterer {bad[0]!r}; names are {', '.join(SCATTERER_NAMES)}")
+            raise InputError(f"unknown scatterer {bad[0]!r}; names are {', '.join(SCATTERER_NAMES)}")
         if any(x < 0 for x in v.values()):
-            raise ValueError("gain scale factors must be >= 0")
+            raise InputError("gain scale factors must be >= 0")
         return v
 
 
@@ -288,7 +288,7 @@ class Clutter(_Model):
     @classmethod
     def _range(cls, v):
         if not 0 < v[0] <= v[1]:
-            raise ValueError("range_m must be (low, high) with 0 < low <= high")
+            raise InputError("range_m must be (low, high) with 0 < low <= high")
         return v
 
 
@@ -304,7 +304,7 @@ class SignalLayer(_Model):
     def _unique(cls, v):
         names = [g.name for g in v]
         if len(set(names)) != len(names):
-            raise ValueError(f"gain set names must be unique, got {names}")
+            raise InputError(f"gain set names must be unique, got {names}")
         return v
 
 
@@ -337,7 +337,7 @@ class Plan(_Model):
             acts = {s.procedural or s.activity for s in self.motion.sources}
             missing = sorted(a for a in acts if clips.get(a, clips.get("*")) not in (5.0, 10.0))
             if missing:
-                raise ValueError(f"storage.image_layout glasgow: motion.clip_s must give {missing[0]} a length of "
+                raise InputError(f"storage.image_layout glasgow: motion.clip_s must give {missing[0]} a length of "
                                  "5 or 10 s (the Glasgow images' lengths)")
         return self
 

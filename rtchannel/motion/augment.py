@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from rtchannel.motion.pose import Motion
+from processing.errors import InputError
 
 
 def _draw(value, rng, name):
@@ -18,7 +19,7 @@ def _draw(value, rng, name):
         return value
     lo, hi = (float(v) for v in value)
     if not lo <= hi:
-        raise ValueError(f"{name} range must be (low, high) with low <= high, got {value}")
+        raise InputError(f"{name} range must be (low, high) with low <= high, got {value}")
     return float(rng.uniform(lo, hi))
 
 
@@ -41,14 +42,14 @@ def trim(motion: Motion, t0: float = 0.0, t1: float | None = None) -> Motion:
     i0 = int(np.ceil(max(0.0, t0) * motion.fps - 1e-9))
     i1 = motion.n_frames - 1 if t1 is None else int(np.floor(min(t1, motion.duration) * motion.fps + 1e-9))
     if i1 - i0 < 1:
-        raise ValueError(f"trim ({t0}, {t1}) s leaves fewer than two frames of a {motion.duration:.3f} s motion")
+        raise InputError(f"trim ({t0}, {t1}) s leaves fewer than two frames of a {motion.duration:.3f} s motion")
     return replace(motion, rotations=motion.rotations[i0:i1 + 1], positions=motion.positions[i0:i1 + 1])
 
 
 def time_warp(motion: Motion, time_scale: float) -> Motion:
     """The motion played `time_scale` times longer (2 = half speed), resampled to the same frame rate."""
     if not time_scale > 0:
-        raise ValueError(f"time_scale must be positive, got {time_scale}")
+        raise InputError(f"time_scale must be positive, got {time_scale}")
     if time_scale == 1.0:
         return motion
     slowed = replace(motion, fps=motion.fps / time_scale)
@@ -66,7 +67,7 @@ def mirror(motion: Motion) -> Motion:
     idx = mirror_index(motion.rig.names)
     rest = motion.rig.rest
     if not np.allclose(rest[idx] @ m, rest, atol=1e-6):
-        raise ValueError("mirroring needs a left/right symmetric rig")
+        raise InputError("mirroring needs a left/right symmetric rig")
     pos = motion.positions[:, idx] @ m
     rot = np.einsum("ab,fjbc,cd->fjad", m, motion.rotations[:, idx], m)
     return replace(motion, positions=pos, rotations=rot)
@@ -105,7 +106,7 @@ def augment(motion: Motion, *, height=None, time_scale=1.0, mirror=False, headin
     needs_seed = any(v is not None and not np.isscalar(v) for v in (height, time_scale, heading_deg))
     needs_seed |= not isinstance(mirror, (bool, np.bool_))
     if needs_seed and seed is None:
-        raise ValueError("random augmentation (a range or a mirror probability) needs an explicit seed")
+        raise InputError("random augmentation (a range or a mirror probability) needs an explicit seed")
     h = _draw(height, rng, "height")
     ts = float(_draw(time_scale, rng, "time_scale"))
     mir = bool(mirror) if isinstance(mirror, (bool, np.bool_)) else bool(rng.random() < float(mirror))

@@ -22,6 +22,7 @@ from rtchannel.motion.rigs import cc_neutral
 from rtchannel.motion.source import (FILE_FPS_RANGE, MAX_ANGLE_DEG, MAX_DURATION_S, MAX_SOURCE_FRAMES,
                                      SourceMotion, check_extent, guess_units, guess_up, parse_units, up_rotation)
 from rtchannel.motion.pose import Motion
+from processing.errors import InputError
 
 END = "/End"  # suffix naming a joint's End Site point
 MAX_BVH_BYTES = 1 << 30  # text; ~10 bytes per value, so MAX_VALUES of text is ~0.5 GB
@@ -283,7 +284,7 @@ def _rig_kind(names: list[str]) -> str:
         return "cc"
     if {"Hips", "LeftUpLeg", "RightUpLeg", "LeftLeg", "LeftFoot"} <= set(names):
         return "cmu"
-    raise ValueError("unknown BVH skeleton: expected the CMU/cgspeed rig (Hips, LeftUpLeg, ...) or the "
+    raise InputError("unknown BVH skeleton: expected the CMU/cgspeed rig (Hips, LeftUpLeg, ...) or the "
                      "iClone CC_Base_* rig")
 
 

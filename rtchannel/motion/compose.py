@@ -11,6 +11,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from rtchannel.motion.pose import Motion
+from processing.errors import InputError
 
 ROOT = 0  # the hips: the rig's root joint
 
@@ -52,9 +53,9 @@ def back_and_forth(leg: Motion, legs: int, turn_s: float) -> Motion:
     through the midpoint of its hips' path (so it returns to the start), joined by turns on the spot
     lasting `turn_s` seconds (`turn_frames`). One leg returns `leg` unchanged."""
     if not (isinstance(legs, (int, np.integer)) and 1 <= legs <= 100):
-        raise ValueError(f"legs must be an integer 1..100, got {legs!r}")
+        raise InputError(f"legs must be an integer 1..100, got {legs!r}")
     if not 0 < turn_s <= 10:
-        raise ValueError(f"turn_s must be in (0, 10] s, got {turn_s}")
+        raise InputError(f"turn_s must be in (0, 10] s, got {turn_s}")
     if legs == 1:
         return leg
     mid = 0.5 * (leg.positions[0, ROOT, :2] + leg.positions[-1, ROOT, :2])
@@ -77,11 +78,11 @@ def fit_clip(motion: Motion, clip_s: float, lead: float = 0.5, start_s: float | 
     padded by holding its first and last pose, a share `lead` in [0, 1] of the padding before it. Whatever
     runs past `clip_s` is cut; a recording that outlasts the motion holds its last pose."""
     if not 0 < clip_s <= 600:
-        raise ValueError(f"clip_s must be in (0, 600] s, got {clip_s}")
+        raise InputError(f"clip_s must be in (0, 600] s, got {clip_s}")
     if not 0 <= lead <= 1:
-        raise ValueError(f"lead must be in [0, 1], got {lead}")
+        raise InputError(f"lead must be in [0, 1], got {lead}")
     if start_s is not None and not -motion.duration < start_s < clip_s:
-        raise ValueError(f"start_s {start_s} s leaves nothing of a {motion.duration:.2f} s motion in a {clip_s} s clip")
+        raise InputError(f"start_s {start_s} s leaves nothing of a {motion.duration:.2f} s motion in a {clip_s} s clip")
     n = int(round(clip_s * motion.fps)) + 1
     if start_s is not None:
         first = int(round(start_s * motion.fps))  # recording frame of the motion's first frame

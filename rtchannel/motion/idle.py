@@ -24,6 +24,7 @@ from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
 from rtchannel.motion.pose import Motion
+from processing.errors import InputError
 
 # joint groups of the avatar rig (CMU naming) whose local rotations are perturbed
 GROUPS = {
@@ -60,7 +61,7 @@ class IdleMotion(BaseModel):
     def _band(self):
         lo, hi = self.band_hz
         if not 0 < lo < hi <= 10:
-            raise ValueError(f"band_hz must be 0 < low < high <= 10 Hz, got {list(self.band_hz)}")
+            raise InputError(f"band_hz must be 0 < low < high <= 10 Hz, got {list(self.band_hz)}")
         return self
 
     def scaled(self, factor: float) -> "IdleMotion":
@@ -77,7 +78,7 @@ def band_noise(n: int, fps: float, band_hz, rng: np.random.Generator, size: int 
     lo, hi = band_hz
     nyq = fps / 2
     if hi >= nyq:
-        raise ValueError(f"idle band {lo}-{hi} Hz needs a frame rate above {2 * hi} Hz, got {fps}")
+        raise InputError(f"idle band {lo}-{hi} Hz needs a frame rate above {2 * hi} Hz, got {fps}")
     pad = int(np.ceil(3 * fps / lo))  # filter settling either side, so the clip's ends are not damped
     x = rng.standard_normal((size, n + 2 * pad))
     y = sosfiltfilt(butter(4, [lo / nyq, hi / nyq], btype="band", output="sos"), x, axis=1)[:, pad:pad + n]

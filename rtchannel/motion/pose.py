@@ -20,6 +20,7 @@ import numpy as np
 
 from rtchannel.assets import avatar_dir
 from rtchannel.errors import ConfigError
+from processing.errors import InputError
 
 # Topological order: every parent precedes its children.
 JOINT_NAMES: tuple[str, ...] = (
@@ -67,7 +68,7 @@ class Rig:
     def scaled(self, height: float) -> "Rig":
         """This rig uniformly scaled about the floor point under the origin to `height` metres."""
         if not np.isfinite(height) or height <= 0.3 or height > 3.0:
-            raise ValueError(f"height must be a plausible body height in metres (0.3-3 m), got {height}")
+            raise InputError(f"height must be a plausible body height in metres (0.3-3 m), got {height}")
         s = height / self.height
         return replace(self, rest=self.rest * s, tails=self.tails * s, height=float(height))
 
@@ -81,7 +82,7 @@ def _load_avatar_rig() -> Rig:
     raw = json.loads((avatar_dir() / "rig.cmu_mb.json").read_text())
     missing = set(JOINT_NAMES) - set(raw)
     if missing:
-        raise ValueError(f"rig.cmu_mb.json lacks joints {sorted(missing)}")
+        raise InputError(f"rig.cmu_mb.json lacks joints {sorted(missing)}")
     heads = np.array([raw[n]["head"]["default_position"] for n in JOINT_NAMES], dtype=float)
     tails = np.array([raw[n]["tail"]["default_position"] for n in JOINT_NAMES], dtype=float)
     lift = np.array([0.0, 0.0, SOLE_OFFSET_M])
@@ -163,15 +164,15 @@ class Motion:
     def __post_init__(self) -> None:
         f, j = self.positions.shape[:2]
         if self.rotations.shape != (f, j, 3, 3) or j != self.rig.n_joints:
-            raise ValueError(
+            raise InputError(
                 f"Motion shapes disagree: positions {self.positions.shape}, rotations "
                 f"{self.rotations.shape}, rig has {self.rig.n_joints} joints")
         if f < 2:
-            raise ValueError("a Motion needs at least two frames")
+            raise InputError("a Motion needs at least two frames")
         if not (np.isfinite(self.positions).all() and np.isfinite(self.rotations).all()):
-            raise ValueError("Motion contains NaN or infinite joint data")
+            raise InputError("Motion contains NaN or infinite joint data")
         if not self.fps > 0:
-            raise ValueError(f"fps must be positive, got {self.fps}")
+            raise InputError(f"fps must be positive, got {self.fps}")
 
     @property
     def n_frames(self) -> int:

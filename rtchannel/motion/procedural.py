@@ -36,6 +36,7 @@ from rtchannel.motion import kinematics as km
 from rtchannel.motion.kinematics import DEG, NOMINAL_HEIGHT_M, keyframes, step
 from rtchannel.motion.pose import Motion, Rig, avatar_rig
 from rtchannel.motion.activities import ACTIVITIES
+from processing.errors import InputError
 
 _DEFAULT_DURATION_S = {"fall": 1.5, "sit": 2.3, "stand": 1.9, "pick": 2.8}
 _DURATION_RANGE_S = {"fall": (0.8, 3.0), "sit": (1.0, 5.0), "stand": (1.0, 5.0), "pick": (1.5, 8.0)}
@@ -86,7 +87,7 @@ class ProceduralParams(BaseModel):
             cadence = self.speed / self.step_length
             lo, hi = _CADENCE_RANGE
             if not lo <= cadence <= hi:
-                raise ValueError(f"step_length {self.step_length} m at speed {self.speed} m/s gives a cadence "
+                raise InputError(f"step_length {self.step_length} m at speed {self.speed} m/s gives a cadence "
                                  f"of {cadence:.2f} steps/s, outside {lo}-{hi} steps/s")
         return self
 
@@ -117,7 +118,7 @@ def generate(activity: str, params: ProceduralParams | None = None, **overrides)
         pydantic.ValidationError: invalid or unknown parameters.
     """
     if activity not in ACTIVITIES:
-        raise ValueError(f"unknown activity {activity!r}; valid activities are {', '.join(ACTIVITIES)}")
+        raise InputError(f"unknown activity {activity!r}; valid activities are {', '.join(ACTIVITIES)}")
     base = params.model_dump() if params is not None else {}
     p = ProceduralParams(**{**base, **overrides})
     rig = avatar_rig(p.height)
@@ -130,7 +131,7 @@ def generate(activity: str, params: ProceduralParams | None = None, **overrides)
             duration = _DEFAULT_DURATION_S[activity] * (1 + 0.08 * rng.uniform(-1, 1))
         lo, hi = _DURATION_RANGE_S[activity]
         if not lo <= duration <= hi:
-            raise ValueError(f"duration of {activity!r} must be within {lo}-{hi} s, got {duration}")
+            raise InputError(f"duration of {activity!r} must be within {lo}-{hi} s, got {duration}")
         t = _times(p, duration)
         u = (t - p.pad_before) / duration
         if activity == "fall":
@@ -329,7 +330,7 @@ def _walk(rig: Rig, p: ProceduralParams, rng):
     s = rig.height / NOMINAL_HEIGHT_M
     v = p.speed
     if p.distance is not None and p.duration is not None and abs(p.distance / v - p.duration) > 1e-2 * p.duration:
-        raise ValueError(f"walk: distance {p.distance} m at {v} m/s does not last duration {p.duration} s; "
+        raise InputError(f"walk: distance {p.distance} m at {v} m/s does not last duration {p.duration} s; "
                          "give one of them")
     dist = p.distance if p.distance is not None else (v * p.duration if p.duration is not None else 4.0)
     step0 = p.step_length if p.step_length is not None else default_step_length(p.height, v) * _jitter(rng, 0.04)

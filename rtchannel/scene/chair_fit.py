@@ -30,6 +30,7 @@ import numpy as np
 from rtchannel.motion.pose import Motion
 from rtchannel.scene.furniture import (BACK_TOP_ABOVE_SEAT_M, CHAIR, LEG_SECTION_M, SEAT_DEPTH_M,
                                        SEAT_THICKNESS_M, SEAT_WIDTH_M, Furniture, chair_boxes)
+from processing.errors import InputError
 
 SEATED_ACTIVITIES = ("sit", "stand")
 SUSTAIN_S = 0.3  # the hips must stay this long at a level for it to count as the seat
@@ -60,7 +61,7 @@ def seated_frames(motion: Motion) -> np.ndarray:
     r = motion.rig
     standing = 0.5 * (r.rest[r.index("LeftUpLeg"), 2] + r.rest[r.index("RightUpLeg"), 2])
     if sustained > SEATED_MAX_HIP_FRACTION * standing:
-        raise ValueError(f"no seated phase: the hips never stay below {SEATED_MAX_HIP_FRACTION:g} x the standing "
+        raise InputError(f"no seated phase: the hips never stay below {SEATED_MAX_HIP_FRACTION:g} x the standing "
                          f"hip height ({SEATED_MAX_HIP_FRACTION * standing:.2f} m) for {SUSTAIN_S:g} s "
                          f"(lowest sustained {sustained:.2f} m)")
     return z <= sustained + SEATED_BAND_M
@@ -125,7 +126,7 @@ def chair_for(motion: Motion, *, material: str = "wood", lod: str = "10k", back_
     band = ((z >= h - SEAT_THICKNESS_M) & (z <= h + BACK_TOP_ABOVE_SEAT_M)
             & (np.abs(y) <= SEAT_WIDTH_M / 2 + 0.02))
     if not band.any():
-        raise ValueError(f"no skin above a {h:.2f} m seat: cannot place the backrest")
+        raise InputError(f"no skin above a {h:.2f} m seat: cannot place the backrest")
     rear = float(x[band].min())
     back_face = -SEAT_DEPTH_M / 2 + LEG_SECTION_M  # chair-local x of the backrest's front face
     offset = rear - back_gap - back_face  # chair origin ahead of the hip midpoint [m]

@@ -36,6 +36,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from processing.atomic import temporary_sibling
 from rtchannel.assets import furniture_dir
+from processing.errors import InputError
 
 CHAIR = "chair"
 DEFAULT_SEAT_HEIGHT_M = 0.45
@@ -149,7 +150,7 @@ class Furniture(BaseModel):
     @classmethod
     def _itu(cls, v: str) -> str:
         if v not in ITU_MATERIALS:
-            raise ValueError(f"unknown ITU material {v!r}; choose one of {', '.join(ITU_MATERIALS)}")
+            raise InputError(f"unknown ITU material {v!r}; choose one of {', '.join(ITU_MATERIALS)}")
         return v
 
     @field_validator("mesh")
@@ -163,9 +164,9 @@ class Furniture(BaseModel):
     @model_validator(mode="after")
     def _sizes(self) -> "Furniture":
         if self.mesh == CHAIR and self.scale != 1.0:
-            raise ValueError("the built-in chair is sized by seat_height, not scale")
+            raise InputError("the built-in chair is sized by seat_height, not scale")
         if self.mesh != CHAIR and self.seat_height is not None:
-            raise ValueError("seat_height applies to the built-in chair only; size a user mesh with scale")
+            raise InputError("seat_height applies to the built-in chair only; size a user mesh with scale")
         return self
 
     @property
@@ -197,7 +198,7 @@ class Furniture(BaseModel):
         """Chair only: how deep [m] each scene point [..., 3] lies inside the chair's boxes (0 outside);
         `boxes` selects boxes in `chair_boxes` order (seat, legs and posts, backrest)."""
         if self.mesh != CHAIR:
-            raise ValueError("penetration depth is defined for the built-in chair (boxes) only")
+            raise InputError("penetration depth is defined for the built-in chair (boxes) only")
         p = self.to_local(points)
         depth = np.zeros(p.shape[:-1])
         for lo, hi in chair_boxes(DEFAULT_SEAT_HEIGHT_M if self.seat_height is None else self.seat_height)[boxes]:
@@ -225,14 +226,14 @@ def resolve_mesh_path(mesh: str | Path) -> Path:
     """The existing ``.ply``/``.obj`` file `mesh` names, inside `allowed_mesh_dirs()`; raises ValueError."""
     p = Path(mesh).expanduser()
     if p.suffix.lower() not in MESH_SUFFIXES:
-        raise ValueError(f"furniture mesh {mesh!r}: expected 'chair' or a {' or '.join(MESH_SUFFIXES)} file")
+        raise InputError(f"furniture mesh {mesh!r}: expected 'chair' or a {' or '.join(MESH_SUFFIXES)} file")
     p = (p if p.is_absolute() else furniture_dir() / p).resolve()
     allowed = allowed_mesh_dirs()
     if not any(p.is_relative_to(d) for d in allowed):
-        raise ValueError(f"furniture mesh {p} is outside the allowed folders ({', '.join(map(str, allowed))}); "
+        raise InputError(f"furniture mesh {p} is outside the allowed folders ({', '.join(map(str, allowed))}); "
                          "copy it to meshes/furniture/ or add its folder to RTCHANNEL_FURNITURE_DIRS")
     if not p.is_file():
-        raise ValueError(f"furniture mesh {p} does not exist")
+        raise InputError(f"furniture mesh {p} does not exist")
     return p
 
 
@@ -244,9 +245,9 @@ def load_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray]:
     mesh = trimesh.load(str(path), force="mesh", process=False)
     v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
     if len(f) == 0 or not np.isfinite(v).all():
-        raise ValueError(f"furniture mesh {path}: no triangles or non-finite vertices")
+        raise InputError(f"furniture mesh {path}: no triangles or non-finite vertices")
     if len(f) > MAX_MESH_TRIANGLES:
-        raise ValueError(f"furniture mesh {path} has {len(f)} triangles (limit {MAX_MESH_TRIANGLES}): every "
+        raise InputError(f"furniture mesh {path} has {len(f)} triangles (limit {MAX_MESH_TRIANGLES}): every "
                          "triangle costs ray-tracing time each frame; decimate it")
     return v, f
 
@@ -291,7 +292,7 @@ def furnished_scene_xml(base_xml: Path, furniture, cache_dir: Path | None = None
     xml = _absolute_filenames(base_xml.read_text(), base_xml.parent)
     end = xml.rfind("</scene>")
     if end < 0:
-        raise ValueError(f"{base_xml}: not a Mitsuba scene file (no </scene>)")
+        raise InputError(f"{base_xml}: not a Mitsuba scene file (no </scene>)")
     items = list(furniture)
     meshes = [f.world_mesh() for f in items]
     digest = hashlib.sha256(json.dumps({"format": _SCENE_FORMAT, "base": xml,

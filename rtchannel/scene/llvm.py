@@ -10,6 +10,8 @@ import glob
 import os
 import re
 
+from processing.errors import InputError
+
 MIN_LLVM_MAJOR = 16
 INSTALL_HINT = "install LLVM >= 16, e.g. 'apt-get install -y libllvm19' on Debian 12"
 
@@ -24,8 +26,9 @@ _SEARCH_GLOBS = (
 )
 
 
-class LLVMNotFoundError(RuntimeError):
-    """No usable libLLVM is installed; the message says what to install."""
+class LLVMNotFoundError(InputError):
+    """No usable libLLVM is installed; the message says what to install (a problem of the environment, not a
+    bug: the CLI prints it as one line with exit status 2)."""
 
 
 def _major(path: str) -> int | None:

@@ -29,6 +29,8 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from copy import deepcopy
 
+from processing.errors import InputError
+
 PLUGIN = "rtchannel-radio-material"
 DEFAULT_THICKNESS = 0.1  # [m], sionna.rt.constants.DEFAULT_THICKNESS
 _KIND = "rtchannel_sionna_type"  # string property naming the Sionna plugin the BSDF stands for
@@ -171,20 +173,20 @@ def slab_parameters(mi, dr, values: dict, frequency_hz: float) -> tuple[float, f
     if values.get(_KIND) == "itu-radio-material":
         itu_type = values.get("type")
         if itu_type not in ITU_MATERIALS_PROPERTIES:
-            raise ValueError(f"Invalid ITU material type \"{itu_type}\"")
+            raise InputError(f"Invalid ITU material type \"{itu_type}\"")
         f_ghz = mi.Float(frequency_hz) / 1e9
         for (lo, hi), (a, b, c, d) in ITU_MATERIALS_PROPERTIES[itu_type].items():
             if lo <= f_ghz <= hi:
                 break
         else:
-            raise ValueError(f"Properties of ITU material '{itu_type}' are not defined for this frequency")
+            raise InputError(f"Properties of ITU material '{itu_type}' are not defined for this frequency")
         eps, sigma = a * dr.power(f_ghz, b), c * dr.power(f_ghz, d)
     else:
         eps, sigma = mi.Float(values.get("relative_permittivity", 1.0)), mi.Float(values.get("conductivity", 0.0))
     thickness = mi.Float(values.get("thickness", DEFAULT_THICKNESS))
     eps, sigma, thickness = float(eps[0]), float(sigma[0]), float(thickness[0])
     if eps < 1.0 or sigma < 0.0 or thickness < 0.0:
-        raise ValueError("radio material with relative permittivity < 1, negative conductivity or thickness")
+        raise InputError("radio material with relative permittivity < 1, negative conductivity or thickness")
     return eps, sigma, thickness
 
 

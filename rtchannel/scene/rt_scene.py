@@ -33,6 +33,7 @@ from rtchannel.assets import scenes_dir
 from rtchannel.scene.sandbox import load_error_line, load_scene_string, read_scene_xml
 from rtchannel.body.meshgeom import closest_point_on_triangles, is_closed, winding_numbers
 from rtchannel.scene.skin import _SKIN_MATERIAL_ID, SkinMaterial, skin_xml
+from processing.errors import InputError
 
 SCENES: dict[str, Path] = {"room": scenes_dir() / "room.xml", "free_space": scenes_dir() / "free_space.xml"}
 BODY_ID = "body"
@@ -70,7 +71,7 @@ def resolve_scene(scene) -> Path:
         return scene.xml_path()
     path = SCENES.get(str(scene), Path(scene))
     if not path.is_file():
-        raise ValueError(f"scene '{scene}' is neither one of {', '.join(SCENES)} nor an existing XML file")
+        raise InputError(f"scene '{scene}' is neither one of {', '.join(SCENES)} nor an existing XML file")
     return path.resolve()
 
 
@@ -123,13 +124,13 @@ class RTScene:
         self.body_faces = np.asarray(body_faces, dtype=np.int64)
         verts = np.asarray(body_vertices, dtype=np.float64)
         if verts.ndim != 2 or verts.shape[1] != 3 or self.body_faces.ndim != 2 or self.body_faces.shape[1] != 3:
-            raise ValueError("body_vertices must be [V, 3] and body_faces [T, 3]")
+            raise InputError("body_vertices must be [V, 3] and body_faces [T, 3]")
         xml = read_scene_xml(self.path)  # sandbox: only files under the allowed roots, one-line errors
         if re.search(r'id\s*=\s*"(mesh-)?body"', xml):
-            raise ValueError(f"{self.path}: shape id 'body' is reserved for the avatar")
+            raise InputError(f"{self.path}: shape id 'body' is reserved for the avatar")
         end = xml.rfind("</scene>")
         if end < 0:
-            raise ValueError(f"{self.path}: not a Mitsuba scene file (no </scene>)")
+            raise InputError(f"{self.path}: not a Mitsuba scene file (no </scene>)")
         self.sionna_scene = None
         with tempfile.TemporaryDirectory() as tmp:
             ply = Path(tmp) / "body.ply"
@@ -301,7 +302,7 @@ class RTScene:
         """Move the body to `vertices` [V, 3] (m) in place (refits the BVH; no recompilation)."""
         v = np.asarray(vertices, dtype=np.float64)
         if v.shape != self.body_vertices.shape:
-            raise ValueError(f"body vertices must have shape {self.body_vertices.shape}, got {v.shape}")
+            raise InputError(f"body vertices must have shape {self.body_vertices.shape}, got {v.shape}")
         mi = _mi()
         self._params[self._body_key] = mi.Float(np.ascontiguousarray(v, np.float32).ravel())
         self._params.update()

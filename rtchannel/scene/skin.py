@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.constants import epsilon_0
 
+from processing.errors import InputError
+
 _SKIN_MATERIAL_ID = "rtchannel-skin"
 
 
@@ -74,10 +76,10 @@ class SkinMaterial:
 
     def __post_init__(self):
         if self.scattering_pattern not in ("lambertian", "backscattering", "directive"):
-            raise ValueError(f"unknown scattering pattern {self.scattering_pattern!r}; "
+            raise InputError(f"unknown scattering pattern {self.scattering_pattern!r}; "
                              "choose lambertian, backscattering or directive")
         if not 0.0 <= self.scattering_coefficient <= 1.0:
-            raise ValueError(f"scattering_coefficient must be in [0, 1], got {self.scattering_coefficient}")
+            raise InputError(f"scattering_coefficient must be in [0, 1], got {self.scattering_coefficient}")
 
 
 def skin_xml(skin: SkinMaterial) -> str:

@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from processing.errors import InputError
+
 
 @dataclass(frozen=True)
 class Scene:
@@ -70,7 +72,7 @@ class Scene:
         from rtchannel.scene.chair_fit import CHAIR_MODES, wants_chair
 
         if chair not in CHAIR_MODES:
-            raise ValueError(f"chair must be one of {', '.join(CHAIR_MODES)}, got {chair!r}")
+            raise InputError(f"chair must be one of {', '.join(CHAIR_MODES)}, got {chair!r}")
         if chair == "none" or not wants_chair(motion):
             return scene
         base = scene if isinstance(scene, Scene) else Scene("room" if scene is None else scene)
@@ -89,7 +91,7 @@ class Scene:
 
         path = SCENES.get(str(self.source), Path(self.source))
         if not path.is_file():
-            raise ValueError(f"scene '{self.source}' is neither one of {', '.join(SCENES)} nor an existing XML file")
+            raise InputError(f"scene '{self.source}' is neither one of {', '.join(SCENES)} nor an existing XML file")
         return path.resolve()
 
     def xml_path(self) -> Path:
