@@ -15,7 +15,7 @@ import numpy as np
 from processing.dsp.signatures import Signature, signatures, signatures_from_projection
 from processing.dsp.config import check_recording
 from processing.pathset import PathSet
-from rtchannel.backends import MESH_BACKENDS, backend_function
+from rtchannel.backends import MESH_BACKENDS, RESERVED_OPTIONS, backend_function, validate_options
 from rtchannel.motion.pose import Motion
 from rtchannel.radar import RadarConfig
 from processing.errors import InputError
@@ -213,6 +213,7 @@ def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "poin
         `PathSets` (one `PathSet` per link name).
     """
     radar = RadarConfig() if radar is None else radar
+    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     if scene is not None:
         if backend in MESH_BACKENDS:
             backend_options["scene"] = scene
@@ -334,6 +335,7 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
         raise InputError("iq_transforms and noise_seeds need one entry per radar")
     for r in radars:
         check_recording(motion.duration, r.waveform, r.dsp, len(r.links), keep_iq)
+    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     union = union_radar(radars)
     if scene is not None and backend in MESH_BACKENDS:
         backend_options["scene"] = scene

@@ -96,7 +96,7 @@ def test_missing_motion_folder_and_bad_yaml_are_one_line(tmp_path, capsys):
     assert "unknown backend 'nosuch'" in capsys.readouterr().err
     p = _write(tmp_path, {**BASE, "backend_options": {"lod": "2k"}})
     assert main(["dataset", "--config", str(p), "--dry-run"]) == 2
-    assert "backend_options.lod: backend 'points' has no such option" in capsys.readouterr().err
+    assert "backend_options: backend 'points' has no option 'lod' (its options:" in capsys.readouterr().err
     assert main(["dataset", "--config", "no_such_preset", "--out", str(tmp_path / "o")]) == 2
     assert re.search(r"presets: [a-z, ]*\bseed\b", capsys.readouterr().err)
 

@@ -99,11 +99,15 @@ def test_empty_axes_and_nested_options_are_refused_for_programmatic_plans_too():
 
 
 def test_backend_option_values(tmp_path):
-    ok = load_plan(_plan(tmp_path, FALL + "backend_options: {a: 1, b: 2.5, c: text, d: true, e: null}\n"))
-    assert ok.backend_options == {"a": 1, "b": 2.5, "c": "text", "d": True, "e": None}
+    ok = load_plan(_plan(tmp_path, FALL + "backend: facets\nbackend_options: {batch_frames: 8, "
+                                          "min_relative_gain_db: -40.5, lod: 5k, walls: true, trace_fps: null}\n"))
+    assert ok.backend_options == {"batch_frames": 8, "min_relative_gain_db": -40.5, "lod": "5k", "walls": True,
+                                  "trace_fps": None}
     for value in ("[1]", "{x: 1}", ".inf", "!!binary aGk="):
-        with pytest.raises(ConfigError, match="backend_options.b:"):
-            load_plan(_plan(tmp_path, FALL + f"backend_options: {{a: 1, b: {value}}}\n"))
+        with pytest.raises(ConfigError, match="backend_options.lod:"):
+            load_plan(_plan(tmp_path, FALL + f"backend: facets\nbackend_options: {{walls: true, lod: {value}}}\n"))
+    with pytest.raises(ConfigError, match="no option 'a'"):  # names and types: the check every command makes
+        load_plan(_plan(tmp_path, FALL + "backend_options: {a: 1}\n"))
 
 
 def test_radar_file_alias_bomb_is_one_line(tmp_path, capsys):

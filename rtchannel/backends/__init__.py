@@ -39,15 +39,31 @@ def unknown_options(backend: str, options: dict, reserved: tuple[str, ...] = RES
     return [name for name in options if name not in accepted or name in reserved]
 
 
+def option_names(backend: str, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> list[str]:
+    """The options a user may set for `backend` (its keyword arguments less motion, radar and `reserved`)."""
+    accepted = inspect.signature(backend_function(backend)).parameters
+    return [n for n in accepted if n not in ("motion", "radar") and n not in reserved]
+
+
 def check_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> None:
-    """Raise ValueError naming the first option the backend does not accept (or that is reserved)."""
+    """Raise InputError naming the first option the backend does not accept (or that is reserved), with the
+    names it does accept."""
     bad = unknown_options(backend, options, reserved)
     if bad:
-        raise InputError(f"backend '{backend}' has no option '{bad[0]}'")
+        raise InputError(f"backend '{backend}' has no option '{bad[0]}' (its options: "
+                         f"{', '.join(option_names(backend, reserved))})")
+
+
+def validate_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> None:
+    """The one check of backend options, shared by every command, dataset plans and the API: the backend
+    exists, every name is one of its options and every value fits the option's type (InputError, one line
+    naming the option and the valid names or the expected type)."""
+    check_options(backend, options, reserved)
+    check_option_values(backend, options)
 
 
 def check_option_values(backend: str, options: dict) -> None:
-    """Raise ValueError naming the first option whose value does not fit the backend's type annotation
+    """Raise InputError naming the first option whose value does not fit the backend's type annotation
     (e.g. ``body_rcs_m2=abc``) or is not a scalar (options come from command lines and YAML plans)."""
     import typing
 
@@ -60,6 +76,8 @@ def check_option_values(backend: str, options: dict) -> None:
         hint = hints.get(name)
         if hint is None or name == "scene":
             continue
+        if "ndarray" in str(hint) and not hasattr(value, "__array__") and value is not None:
+            raise InputError(f"backend option '{name}' = {value!r}: expects an array (set it from Python)")
         try:
             TypeAdapter(hint).validate_python(value, strict=False)
         except ValidationError as e:

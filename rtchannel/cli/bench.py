@@ -8,12 +8,16 @@ from pathlib import Path
 
 def cmd_bench(args) -> int:
     from rtchannel.analysis.chain_bench import bench_chain, exact_duration_walk
-    from rtchannel.cli.common import UserError, check_output, parse_options
+    from rtchannel.cli.common import UserError, check_output, checked_options
 
     check_output(args.out, "dir")
 
     if args.chain:
-        options = parse_options(args.option, per_backend=True).get(args.chain, {})
+        from rtchannel.backends import BACKENDS
+
+        if args.chain not in BACKENDS:
+            raise UserError(f"--chain: unknown backend '{args.chain}'; choose one of {', '.join(BACKENDS)}")
+        options = checked_options(args.option, [args.chain]).get(args.chain, {})
         result = bench_chain(args.chain, repeats=args.repeats, duration=args.duration, keep_iq=args.keep_iq,
                              **options)
         text = json.dumps(result, indent=2)

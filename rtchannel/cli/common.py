@@ -132,8 +132,32 @@ def parse_options(items: list[str] | None, per_backend: bool = False) -> dict:
         backend, dot, name = key.partition(".") if per_backend else ("", ".", key)
         if not sep or not dot or not name or (per_backend and not backend):
             raise UserError(f"--option must look like {form}, got '{item}'")
-        (out.setdefault(backend, {}) if per_backend else out)[name] = yaml.safe_load(value)
+        try:
+            parsed = yaml.safe_load(value)
+        except yaml.YAMLError as e:
+            mark = getattr(e, "problem_mark", None)
+            where = f" at character {mark.column + 1}" if mark is not None else ""
+            raise UserError(f"--option {item}: the value is not a YAML scalar{where} "
+                            f"({getattr(e, 'problem', None) or 'syntax error'})") from None
+        (out.setdefault(backend, {}) if per_backend else out)[name] = parsed
     return out
+
+
+def checked_options(items: list[str] | None, backends: list[str]) -> dict[str, dict]:
+    """``--option BACKEND.NAME=VALUE`` items parsed and validated for each of `backends` (names, types),
+    before any simulation runs: {backend: {name: value}}. UserError (one line) otherwise."""
+    from rtchannel.backends import RESERVED_OPTIONS, validate_options
+
+    options = parse_options(items, per_backend=True)
+    unknown = [b for b in options if b not in backends]
+    if unknown:
+        raise UserError(f"--option for backend '{unknown[0]}' which is not in {', '.join(backends)}")
+    for b, opts in options.items():
+        try:
+            validate_options(b, opts, reserved=RESERVED_OPTIONS + ("scene",))
+        except ValueError as e:
+            raise UserError(f"--option {b}.{e}" if str(e).startswith("backend option") else str(e)) from None
+    return options
 
 
 def load_radar(args):

@@ -51,7 +51,7 @@ def cmd_compare(args) -> int:
     if args.real is not None:
         return cmd_compare_real(args)
 
-    from rtchannel.cli.common import UserError, check_output, load_radar, parse_options, split_list
+    from rtchannel.cli.common import UserError, check_output, checked_options, load_radar, split_list
     from rtchannel.analysis.compare import compare
     from rtchannel.motion.activities import ACTIVITIES
     from rtchannel.backends import BACKENDS
@@ -64,10 +64,7 @@ def cmd_compare(args) -> int:
     bad = [a for a in args.activities if a not in ACTIVITIES]
     if bad:
         raise UserError(f"unknown activity '{bad[0]}'; choose from {', '.join(ACTIVITIES)}")
-    options = parse_options(args.option, per_backend=True)
-    unknown = [b for b in options if b not in args.backends]
-    if unknown:
-        raise UserError(f"--option for backend '{unknown[0]}' which is not in --backends")
+    options = checked_options(args.option, args.backends)
     radar, _ = load_radar(args)
     check_output(args.out, "dir")
     with tqdm(total=len(args.backends) * len(args.activities), unit="run", disable=args.quiet or None) as bar:

@@ -48,7 +48,7 @@ def scene_with_chair(scene, motion, chair: str):
 def backend_options(args) -> dict:
     """Backend keyword options from --lod/--option (values parsed as YAML scalars), checked against the
     backend; --scene is passed separately (`simulate(scene=...)`)."""
-    from rtchannel.backends import BACKENDS, check_option_values, check_options
+    from rtchannel.backends import BACKENDS, RESERVED_OPTIONS, validate_options
 
     if args.backend not in BACKENDS:
         raise UserError(f"unknown backend '{args.backend}'; choose one of {', '.join(BACKENDS)}")
@@ -59,8 +59,7 @@ def backend_options(args) -> dict:
     if args.lod is not None:
         opts["lod"] = args.lod
     try:
-        check_options(args.backend, opts, reserved=("motion", "radar", "progress", "timing", "stats", "scene"))
-        check_option_values(args.backend, opts)
+        validate_options(args.backend, opts, reserved=RESERVED_OPTIONS + ("scene",))
     except ValueError as e:
         raise UserError(str(e)) from None
     return opts

@@ -20,6 +20,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
+from rtchannel.backends import RESERVED_OPTIONS, validate_options
 from rtchannel.data_registry import DATA_PREFIX
 from rtchannel.errors import ConfigError
 from rtchannel.dataset.plan_schema import (  # noqa: F401 - the schema, re-exported with its loader
@@ -61,8 +62,22 @@ def load_plan(spec: str | Path, **overrides) -> Plan:
             s = s.model_copy(update={"files": str((f if f.is_absolute() else path.parent / f).resolve())})
         sources.append(s)
     plan = plan.model_copy(update={"motion": plan.motion.model_copy(update={"sources": sources})})
+    check_plan_options(plan, f"plan {path}")
     count_items(plan, lambda s: len(_motion_files(s, fetch=False)), f"plan {path}")  # counted, not expanded
     return plan
+
+
+# what the dataset runner sets itself: a plan never names these
+RUNNER_OPTIONS = RESERVED_OPTIONS + ("gains",)
+
+
+def check_plan_options(plan: Plan, where: str) -> None:
+    """ConfigError (one line naming the plan) when the plan's backend is unknown or a backend option is not
+    one of the backend's, or of the wrong type: the same check every command and the API make."""
+    try:
+        validate_options(plan.backend, plan.backend_options, reserved=RUNNER_OPTIONS)
+    except ValueError as e:
+        raise ConfigError(f"{where}: backend_options: {e}") from None
 
 
 @dataclass(frozen=True)
@@ -188,6 +203,7 @@ def expand(plan: Plan) -> list[WorkItem]:
     """All work items of `plan`, sorted by item_id (deterministic). ConfigError first if the plan would
     have no items or more than `plan_yaml.MAX_PLAN_ITEMS`, or a backend option is not a single value."""
     check_backend_options(plan.backend_options, f"plan {plan.name!r}")  # a Plan built in code skips load_plan
+    check_plan_options(plan, f"plan {plan.name!r}")
     count_items(plan, lambda s: len(_motion_files(s, fetch=False)), f"plan {plan.name!r}")
     ml, ph, sg = plan.motion, plan.physical, plan.signal
     motion_axes = list(itertools.product(ml.heights, ml.time_scales, ml.mirror, ml.headings_deg, ml.starts))
