@@ -363,3 +363,29 @@ def test_bvh_with_millions_of_short_lines_is_refused_before_splitting(tmp_path):
     p.write_text("HIERARCHY\n" + "1\n" * 500_000)
     with pytest.raises(MotionImportError, match=r"many\.bvh: more than 410000 lines"):
         load_motion(p)
+
+
+def test_c3d_imports_under_an_address_space_limit(tmp_path):
+    """Batch clusters and `ulimit -v` limit address space below the C3D child's own 8 GiB cap: the child must
+    only lower limits (raising them fails), so a valid file still imports under 4 GiB."""
+    import subprocess
+    import sys
+
+    import ezc3d
+
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [100.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = ["A", "B"]
+    c.add_parameter("POINT", "UNITS", ["mm"])
+    pts = np.ones((4, 2, 50))
+    pts[:3] *= np.arange(50)[None, None, :] * 10.0
+    c["data"]["points"] = pts
+    path = tmp_path / "tiny.c3d"
+    c.write(str(path))
+    code = ("import resource; resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))\n"
+            "from rtchannel.motion.c3d import read_markers\n"
+            f"m, rate, units = read_markers({str(path)!r})\n"
+            "print(sorted(m), rate, units, m['A'].shape)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-1500:]
+    assert r.stdout.strip() == "['A', 'B'] 100.0 mm (50, 3)"

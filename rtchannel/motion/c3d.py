@@ -52,12 +52,22 @@ def _header_frames(path: Path) -> int | None:
 # ezc3d (C++) crashes with a segmentation fault on some corrupted headers or parameter sections (byte
 # flips in the first 3 kB: 3 of 3 fuzz runs crashed) and may allocate what a corrupt header asks for, so
 # it runs in a child process with an address-space limit; a crash there is a one-line import error.
-C3D_CHILD_MEMORY = 8 << 30  # address space of the parsing process [bytes]
+C3D_CHILD_MEMORY = 8 << 30  # address space of the parsing process [bytes], or the environment's lower limit
 C3D_CHILD_TIMEOUT_S = 600.0
 _CHILD = r"""
 import resource, sys
-limit = int(sys.argv[3])
-resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+# lower the address-space limit only: never above what the environment already allows (batch clusters and
+# `ulimit -v` set one; raising it, even the soft limit above the hard one, fails)
+soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+want = int(sys.argv[3])
+for cap in (soft, hard):
+    if cap != resource.RLIM_INFINITY:
+        want = min(want, cap)
+try:
+    resource.setrlimit(resource.RLIMIT_AS, (want, hard))
+except (ValueError, OSError) as exc:
+    print(f"could not limit the parser's address space to {want} bytes: {exc}")
+    sys.exit(3)
 import numpy as np
 try:
     import ezc3d
