@@ -95,8 +95,9 @@ def read_yaml_mapping(path: Path, what: str = "plan", max_bytes: int = 1 << 20) 
         raise ConfigError(f"{where}: {_yaml_error(e)}") from None
     try:
         node = loader.get_single_node()
-        if node is None:
-            return {}
+        if node is None:  # an empty file (or only comments) would silently mean "all defaults"
+            raise ConfigError(f"{where}: the file is empty (no {what} settings); give the settings, or leave "
+                              f"the file out for the defaults")
         _expanded_size(node, where)
         data = loader.construct_document(node)
     except yaml.YAMLError as e:
@@ -107,8 +108,9 @@ def read_yaml_mapping(path: Path, what: str = "plan", max_bytes: int = 1 << 20) 
         raise ConfigError(f"{where}: not valid YAML ({' '.join(str(e).split())[:120]})") from None
     finally:
         loader.dispose()
-    if data is None:
-        return {}
+    if data is None or data == {}:
+        raise ConfigError(f"{where}: the file is empty (no {what} settings); give the settings, or leave the "
+                          f"file out for the defaults")
     if not isinstance(data, dict):
         raise ConfigError(f"{where}: expected a mapping at the top level, got a {type(data).__name__}")
     return data

@@ -209,7 +209,7 @@ def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig(),
 
     if cfg.range_sum == "coherent":
         if proj.coherent is None:
-            raise InputError("range_sum 'coherent' needs the projection's coherent slow-time signal")
+            raise ValueError("range_sum 'coherent' needs the projection's coherent slow-time signal")
         x = mti_filter(proj.coherent, prf, wf.carrier_hz, cfg)
         f_ref = proj.coherent_carrier_hz
         # unit-energy taper: a window's total power nfft sum |x w|^2 is at most nfft max |x|^2

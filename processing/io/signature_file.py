@@ -47,7 +47,9 @@ def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, 
         for key in _ARRAYS + (("range_doppler",) if sig.range_doppler is not None else ()):
             value = getattr(sig, key)
             if value is not None and not np.isfinite(np.asarray(value, dtype=float)).all():
-                raise InputError(f"{path}: link {name}: {key} holds non-finite values; nothing written")
+                raise ValueError(f"{path}: link {name}: {key} holds non-finite values; nothing written")
+    if not -2 ** 63 <= int(seed) < 2 ** 63:  # HDF5 attributes hold 64-bit integers
+        raise InputError(f"seed {seed} does not fit a 64-bit integer (use 0..2^63-1)")
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs.update(activity=activity, backend=backend, seed=int(seed), direction_deg=float(direction_deg),
                        version=FORMAT_VERSION, config=json.dumps(config, sort_keys=True, default=str))

@@ -356,14 +356,14 @@ def spread(t: np.ndarray, knots: np.ndarray, y0: np.ndarray, y1: np.ndarray, m0:
             recording when t is one chunk of it (default t's own), so that chunks give the same result.
     """
     if kernel.weights.shape[1] != DEGREE + 1:
-        raise InputError(f"the spreading loop is written for degree-{DEGREE} weights")
+        raise ValueError(f"the spreading loop is written for degree-{DEGREE} weights")
     m = grid_cells(n_samples, kernel)
     f_ref = start_hz + slope * centre_sample(n_samples) / fs
     out = np.zeros((t.size, 2 * (m + kernel.n_cells - 1)))
     pm = np.zeros((out.shape[1] // 2, 0)) if matrix is None else \
         np.ascontiguousarray(np.asarray(matrix, np.complex128)).view(np.float64)
     if pm.shape[0] != out.shape[1] // 2:
-        raise InputError(f"projection matrix must have {out.shape[1] // 2} rows, got {pm.shape[0]}")
+        raise ValueError(f"projection matrix must have {out.shape[1] // 2} rows, got {pm.shape[0]}")
     proj = np.zeros((t.size, pm.shape[1]))
     if t.size and y0.size:
         a = 2.0 / (1 + 2 * kernel.drift)

@@ -200,7 +200,7 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     if walls and image_mesh is not None:
         v_c, f_c, vel_c = image_mesh
         if len(f_c) > len(faces):
-            raise InputError(f"the image mesh has more faces ({len(f_c)}) than the mesh ({len(faces)})")
+            raise ValueError(f"the image mesh has more faces ({len(f_c)}) than the mesh ({len(faces)})")
         meshes.append((np.asarray(v_c, float), np.asarray(f_c, np.int64), vel_c, False, True))
     double = double_bounce_pairs(double_bounce, walls)
     antennas = [link.antennas() for link in links]
@@ -331,7 +331,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
                                                             sionna=False)
     avatar = load_avatar(lod)
     if len(rt.body_faces) != avatar.n_faces:
-        raise InputError(f"scene body has {len(rt.body_faces)} triangles but LOD {lod!r} has {avatar.n_faces}")
+        raise ValueError(f"scene body has {len(rt.body_faces)} triangles but LOD {lod!r} has {avatar.n_faces}")
     coarse = load_avatar(image_lod) if walls and image_lod not in (None, lod) else None
     if coarse is not None and coarse.n_faces > avatar.n_faces:
         raise InputError(f"image_lod {image_lod!r} ({coarse.n_faces} triangles) is finer than lod {lod!r}")

@@ -107,7 +107,7 @@ def _read_body_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
             elif line.startswith("f ") and group == "body":
                 quads.append([int(tok.split("/")[0]) - 1 for tok in line.split()[1:]])
     if any(len(q) != 4 for q in quads):
-        raise InputError(f"{path}: group 'body' is expected to hold quads only")
+        raise ValueError(f"{path}: group 'body' is expected to hold quads only")
     return np.asarray(verts), np.asarray(quads, dtype=np.int64)
 
 
@@ -116,7 +116,7 @@ def _read_weights(path: Path, n_vertices: int) -> sparse.csr_matrix:
     rows, cols, vals = [], [], []
     for bone, pairs in raw.items():
         if bone not in JOINT_INDEX:
-            raise InputError(f"{path}: weights for unknown bone {bone!r}")
+            raise ValueError(f"{path}: weights for unknown bone {bone!r}")
         arr = np.asarray(pairs, dtype=float).reshape(-1, 2)
         rows.append(arr[:, 0].astype(np.int64))
         cols.append(np.full(len(arr), JOINT_INDEX[bone]))
@@ -133,7 +133,7 @@ def _normalise_rows(w: sparse.csr_matrix) -> sparse.csr_matrix:
     w.eliminate_zeros()
     s = np.asarray(w.sum(axis=1)).ravel()
     if (s <= 0).any():
-        raise InputError(f"{int((s <= 0).sum())} vertices have no skinning weight")
+        raise ValueError(f"{int((s <= 0).sum())} vertices have no skinning weight")
     return sparse.diags(1.0 / s) @ w
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rtchannel.cli.common import check_output, positive_int
+from rtchannel.cli.common import check_output, positive_int, seed_int
 
 # the dataset query language lives in the library (usable from the API); re-exported for the commands
 from processing.io.dataset_query import open_spec, parse_spec, select  # noqa: E402,F401
@@ -49,7 +49,7 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--val-fraction", type=float, default=0.2, help="validation share (default 0.2)")
     g.add_argument("--no-group-split", action="store_true",
                    help="split items freely (default: all copies of one motion source on one side)")
-    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--seed", type=seed_int, default=0)
     g.add_argument("--threads", type=positive_int,
                    help="CPU threads torch uses while training (intra-op parallelism of its convolutions and "
                    "matrix products; numpy/BLAS, the DSP and the data loading are not affected). "

@@ -34,6 +34,20 @@ def positive_int(text: str) -> int:
     return value
 
 
+MAX_SEED = 2 ** 63 - 1  # seeds are stored as 64-bit integers (HDF5 attributes, numpy generators)
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a random seed, an integer 0..2^63-1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer 0..2^63-1, got {text!r}") from None
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be an integer 0..2^63-1, got {value}")
+    return value
+
+
 def finite_float(text: str) -> float:
     """argparse type: a finite number (no nan/inf)."""
     try:
@@ -65,7 +79,7 @@ def add_motion_args(p) -> None:
                    help="start of the hips' ground point [m]; default: walks are centred on the origin "
                    "(toward Radar 1 at direction 1), other activities start at the origin")
     p.add_argument("--fps", type=finite_float, default=60.0, help="motion frame rate [Hz] (default 60)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=seed_int, default=0, help="random seed, 0..2^63-1 (default 0)")
 
 
 RADAR_PRESETS = ("seed", "glasgow")

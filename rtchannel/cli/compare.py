@@ -79,7 +79,7 @@ def cmd_compare(args) -> int:
 
 def add_compare(sub) -> None:
     """Register the `compare` subcommand."""
-    from rtchannel.cli.common import add_radar_args
+    from rtchannel.cli.common import add_radar_args, seed_int
     from rtchannel.motion.activities import ACTIVITIES
 
     p = sub.add_parser("compare", help="one set of activities through several backends: DTW table + p(v,t) figure",
@@ -94,7 +94,7 @@ def add_compare(sub) -> None:
     p.add_argument("--option", action="append", metavar="BACKEND.NAME=VALUE",
                    help="backend option, e.g. facets.lod=5k or sionna.samples_per_src=100000 (repeatable)")
     p.add_argument("--height", type=float, default=1.75, help="body height [m]")
-    p.add_argument("--seed", type=int, default=0, help="motion seed")
+    p.add_argument("--seed", type=seed_int, default=0, help="motion seed")
     add_radar_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     g = p.add_argument_group("Table I against real recordings (--real: no simulation is run)")

@@ -320,7 +320,7 @@ class Plan(_Model):
     """A dataset: motion, physical and signal layers, backend and storage. See docs/dataset.md."""
 
     name: str = Field("dataset", pattern=_NAME)
-    seed: int = Field(0, ge=0, description="plan seed: every random draw derives from it")
+    seed: int = Field(0, ge=0, le=2**63 - 1, description="plan seed: every random draw derives from it")
     backend: str = Field("points", min_length=1)
     backend_options: dict[str, Any] = Field(default_factory=dict)
     chair: Literal["auto", "none"] = Field("none", description="mesh backends: auto puts a chair under sit and "
