@@ -42,7 +42,6 @@ from processing.dsp.fast_time import Projection, coherent_weights, doppler_band,
 from processing.dsp.mti import mti_filter
 from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
-from processing.errors import InputError
 
 __all__ = ["DEFAULT_MTI_CUTOFF_MPS", "DSPConfig", "GLASGOW_DSP", "Projection", "Signature", "column_sums",
            "mean_velocity", "project", "signatures", "signatures_from_projection"]

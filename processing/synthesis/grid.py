@@ -40,7 +40,6 @@ import numpy as np
 import scipy.fft
 
 from processing.synthesis.kernel import DEGREE, OVERSAMPLE, SpreadKernel, spread_kernel
-from processing.errors import InputError
 
 __all__ = ["OVERSAMPLE", "SpreadKernel", "fold", "grid_cells", "grid_to_iq", "gridded_tone_sum", "prepare_frames",
            "project_rows", "projection_matrix", "spread", "spread_kernel"]
