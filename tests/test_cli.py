@@ -231,3 +231,17 @@ def test_user_errors_stay_exit_2_and_llvm_missing_is_one_of_them(tmp_path, capsy
     _break_simulate(monkeypatch, LLVMNotFoundError("no usable libLLVM (>= 16) found for Dr.Jit: install LLVM"))
     assert main(["simulate", "--out", str(tmp_path / "o")]) == 2
     assert "libLLVM" in _one_error_line(capsys)
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["render", "--out", "{t}/r.png", "--strip", "{t}/x.mp4"], ["x.mp4", "'.mp4'", ".gif"]),
+    (["render", "--out", "{t}/r.bmp"], ["r.bmp", "'.bmp'", ".png"]),
+])
+def test_output_formats_decided_by_extension_are_refused_up_front(argv, words, tmp_path, capsys):
+    """A file's name says what it holds: an extension the writer cannot produce is one line before any
+    rendering, and nothing is written."""
+    argv = [a.replace("{t}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    line = _one_error_line(capsys)
+    assert all(w in line for w in words), line
+    assert list(tmp_path.iterdir()) == []

@@ -174,3 +174,25 @@ def test_unreadable_plan_json_is_one_line(tmp_path, reference, capsys):
     assert main(["dataset", "--config", str(plan_file), "--out", str(out), "--workers", "1", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "plan.json: unreadable" in err[0]
+
+
+def test_info_reports_unreadable_index_lines_and_what_the_shards_hold(tmp_path, reference, capsys):
+    """An index reduced to garbage must not read as an empty dataset: --info names the unreadable lines and
+    counts what the shards hold; running the plan again rebuilds the index from the shards."""
+    import shutil
+
+    _, ref = reference
+    ds = tmp_path / "ds"
+    shutil.copytree(ref, ds)
+    n = len(DatasetReader(ds))
+    (ds / "index.jsonl").write_text("garbage line\n")  # a torn last line reads as no entries
+    assert main(["dataset", "--info", str(ds)]) == 0
+    out = capsys.readouterr().out
+    assert "index: 1 unreadable line (first: line 1); 0 readable entries" in out
+    assert f"shards hold {n} items" in out and f"{n} items in the shards are not in the index" in out
+    lines = (ref / "index.jsonl").read_text().splitlines()
+    lines[1] = "{not json"
+    (ds / "index.jsonl").write_text("\n".join(lines) + "\n")
+    assert main(["dataset", "--info", str(ds)]) == 0
+    out = capsys.readouterr().out
+    assert "cannot be read as a whole" in out and "first: line 2" in out and "1 item in the shards is not" in out

@@ -243,24 +243,56 @@ def read_jsonl(path: str | Path, required: dict[str, type] | None = None) -> lis
         if not line.strip():
             continue
         try:
-            row = json.loads(line)
+            rows.append(parse_jsonl_line(line, required))
         except (json.JSONDecodeError, RecursionError):
             if i == last:
                 continue
             raise DatasetFormatError(f"{p}: line {i + 1}: not valid JSON") from None
-        if not isinstance(row, dict):
-            raise DatasetFormatError(f"{p}: line {i + 1}: expected a JSON object, got {type(row).__name__}")
-        for key, typ in (required or {}).items():
-            v = row.get(key)
-            ok = isinstance(v, typ) and isinstance(v, bool) == (typ is bool)
-            if ok and typ is list:  # lists and maps of the index hold names (links) and checksums
-                ok = all(isinstance(x, str) for x in v)
-            elif ok and typ is dict:
-                ok = all(isinstance(k, str) and isinstance(x, str) for k, x in v.items())
-            if not ok:
-                raise DatasetFormatError(f"{p}: line {i + 1}: entry lacks a valid {key!r} ({typ.__name__})")
-        rows.append(row)
+        except DatasetFormatError as e:
+            raise DatasetFormatError(f"{p}: line {i + 1}: {e}") from None
     return rows
+
+
+def parse_jsonl_line(line: str, required: dict[str, type] | None = None) -> dict:
+    """One JSON-lines row: a JSON object holding the `required` keys {name: type}. Raises the JSON error
+    for text that is not JSON, DatasetFormatError (without a location) for anything else wrong."""
+    row = json.loads(line)
+    if not isinstance(row, dict):
+        raise DatasetFormatError(f"expected a JSON object, got {type(row).__name__}")
+    for key, typ in (required or {}).items():
+        v = row.get(key)
+        ok = isinstance(v, typ) and isinstance(v, bool) == (typ is bool)
+        if ok and typ is list:  # lists and maps of the index hold names (links) and checksums
+            ok = all(isinstance(x, str) for x in v)
+        elif ok and typ is dict:
+            ok = all(isinstance(k, str) and isinstance(x, str) for k, x in v.items())
+        if not ok:
+            raise DatasetFormatError(f"entry lacks a valid {key!r} ({typ.__name__})")
+    return row
+
+
+def index_health(root: str | Path) -> dict:
+    """What `dataset --info` reports beyond the counts: the index's unreadable lines and what the shards hold.
+
+    Returns {"index_lines": lines with an entry, "bad_lines": [1-based numbers of lines that are not valid
+    entries, a torn last line included], "shard_items": items the readable shards hold, "bad_shards": [names],
+    "missing_from_index": items in shards the index does not list}.
+    """
+    root = Path(root)
+    good, bad = set(), []
+    index = root / INDEX
+    if index.is_file():
+        for i, line in enumerate(index.read_text(encoding="utf-8", errors="replace").splitlines()):
+            if not line.strip():
+                continue
+            try:
+                good.add(parse_jsonl_line(line, ENTRY_KEYS)["item_id"])
+            except (DatasetFormatError, json.JSONDecodeError, RecursionError):
+                bad.append(i + 1)
+    in_shards, bad_shards = scan_shards(root) if (root / SHARDS).is_dir() else ([], [])
+    ids = {e["item_id"] for e in in_shards}
+    return {"index_lines": len(good), "bad_lines": bad, "shard_items": len(ids), "bad_shards": bad_shards,
+            "missing_from_index": len(ids - good)}
 
 
 class DatasetReader:

@@ -31,13 +31,7 @@ def cmd_dataset(args) -> int:
     from rtchannel.cli.common import UserError, check_output, validation_line
 
     if args.info is not None:
-        from processing.io.dataset_store import DatasetReader
-
-        try:
-            print(DatasetReader(args.info).summary())
-        except FileNotFoundError as e:
-            raise UserError(str(e)) from None
-        return 0
+        return _info(args.info)
     if args.out is None and not args.dry_run:
         raise UserError("--out DIR is required with --config")
     if args.workers is not None and args.workers < 1:
@@ -85,3 +79,32 @@ def cmd_dataset(args) -> int:
     for e in s.failed[:5]:
         print(f"failed {e['item_id']}: {e['error']}")
     return 0 if s.complete else 1
+
+
+def _info(root) -> int:
+    """`dataset --info DIR`: counts and failures, and what the index cannot say: its unreadable lines and
+    the items the shards hold that it does not list (a damaged index is reported, not silently empty)."""
+    from processing.errors import DatasetFormatError
+    from processing.io.dataset_store import DatasetReader, index_health
+    from rtchannel.cli.common import UserError
+
+    if not root.is_dir():
+        raise UserError(f"dataset folder not found: {root}")
+    health = index_health(root)
+    try:
+        print(DatasetReader(root).summary())
+    except DatasetFormatError as e:
+        print(f"{root}: the index cannot be read as a whole ({e})")
+    except FileNotFoundError as e:
+        raise UserError(str(e)) from None
+    bad = health["bad_lines"]
+    if bad:
+        print(f"  index: {len(bad)} unreadable line{'s' if len(bad) > 1 else ''} (first: line {bad[0]}); "
+              f"{health['index_lines']} readable entries")
+    print(f"  shards hold {health['shard_items']} items" + (f", {len(health['bad_shards'])} unreadable shards "
+          f"({', '.join(health['bad_shards'][:3])})" if health["bad_shards"] else ""))
+    if health["missing_from_index"]:
+        n = health["missing_from_index"]
+        print(f"  {n} item{'s' if n > 1 else ''} in the shards {'are' if n > 1 else 'is'} not in the index: run the same "
+              "`rtchannel dataset` command again to resume, which rebuilds the index from the shards")
+    return 0

@@ -14,7 +14,7 @@ def add_render(sub) -> None:
                        "(Mitsuba, the ray tracer's own renderer), plus an animation strip of the activity.")
     add_motion_args(p)
     p.add_argument("--out", required=True, type=Path, help="scene PNG to write")
-    p.add_argument("--strip", type=Path, help="also write an animation strip (.png) or animation (.gif)")
+    p.add_argument("--strip", type=Path, help="also write an animation strip (.png) or animation (.gif); other extensions are refused")
     p.add_argument("--frames", type=int, nargs="+", help="frame indices (default: 5 evenly spaced)")
     add_radar_args(p)
     p.add_argument("--lod", default="10k", help="avatar level of detail: full, 10k, 5k, 2k (default 10k)")
@@ -27,8 +27,11 @@ def add_render(sub) -> None:
 def cmd_render(args) -> int:
     import numpy as np
 
-    from rtchannel.scene.render import render_scene, render_strip
+    from rtchannel.scene.render import SCENE_FORMATS, STRIP_FORMATS, check_format, render_scene, render_strip
 
+    check_format(args.out, SCENE_FORMATS, "scene picture (--out)")
+    if args.strip is not None:
+        check_format(args.strip, STRIP_FORMATS, "animation strip (--strip)")
     radar, _ = load_radar(args)
     check_output(args.out, "file")
     if args.strip is not None:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from processing.atomic import atomic_path
+from processing.errors import InputError
 from rtchannel.body.avatar import load_avatar
 from rtchannel.motion.pose import Motion
 from rtchannel.body.skinning import skin_vertices
@@ -21,6 +22,20 @@ _PALETTE = ((0.80, 0.35, 0.25), (0.25, 0.50, 0.80), (0.30, 0.70, 0.35), (0.85, 0
             (0.60, 0.35, 0.75), (0.20, 0.70, 0.70), (0.75, 0.45, 0.55), (0.55, 0.55, 0.55))
 _RADAR_COLOUR = (0.95, 0.05, 0.05)
 
+
+
+# output formats by file extension: what each writer can produce (others are refused up front, so a file's
+# name always says what it holds)
+SCENE_FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".exr": "OpenEXR"}
+STRIP_FORMATS = {".png": "PNG", ".gif": "GIF"}
+
+
+def check_format(path, formats: dict, what: str) -> None:
+    """InputError (one line) unless `path`'s extension is one of `formats`."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in formats:
+        raise InputError(f"{path}: cannot write the {what} as '{suffix or 'no extension'}'; use "
+                         f"{', '.join(formats)}")
 
 def _mi():
     from rtchannel.scene.llvm import import_mitsuba
@@ -137,6 +152,7 @@ def render_scene(motion: Motion, frames, radar_positions, out_png, lod: str = "1
     Returns:
         The path written.
     """
+    check_format(out_png, SCENE_FORMATS, "scene picture")
     av = load_avatar(lod)
     frames = np.atleast_1d(np.asarray(frames, dtype=int))
     verts = skin_vertices(av, motion, frames)
@@ -153,7 +169,7 @@ def render_scene(motion: Motion, frames, radar_positions, out_png, lod: str = "1
     suffix = out.suffix.lower()
     # what mi.util.write_bitmap does, but into the atomic temporary (whose .tmp suffix names no format)
     bitmap = mi.util.convert_to_bitmap(mi.render(scene), suffix in (".png", ".jpg", ".jpeg"))
-    fmt = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".exr": "OpenEXR"}.get(suffix, "Auto")
+    fmt = SCENE_FORMATS[suffix]
     with atomic_path(out) as tmp:
         bitmap.write(str(tmp), getattr(mi.Bitmap.FileFormat, fmt))
     return out
@@ -169,6 +185,7 @@ def render_strip(motion: Motion, out, n: int = 8, lod: str = "5k", *, panel=(240
     """
     from PIL import Image, ImageDraw
 
+    check_format(out, STRIP_FORMATS, "animation strip")
     mi = _mi()
     av = load_avatar(lod)
     frames = np.linspace(0, motion.n_frames - 1, n).round().astype(int)
