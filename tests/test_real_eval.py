@@ -235,3 +235,37 @@ def test_compare_real_cli_writes_table_with_real_columns(tmp_path):
 def test_compare_real_needs_a_simulated_side(tmp_path, capsys):
     assert main(["compare", "--real", str(GLASGOW), "--out", str(tmp_path / "o")]) == 2
     assert "--sim" in capsys.readouterr().err
+
+
+def _glasgow_like(path, v0: float, seconds: float = 5.0):
+    """A Glasgow-layout image the test makes itself: one Gaussian line at v0 m/s over the whole clip."""
+    from processing.realdata.spectrogram_image import glasgow_layout
+    from processing.realdata.spectrogram_image_writer import write_spectrogram_image
+
+    v = np.linspace(-6, 6, 317)
+    t = np.linspace(0, seconds, 120)
+    power = np.exp(-0.5 * ((v[:, None] - v0) / 0.3) ** 2) + 1e-4
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_spectrogram_image(path, v, t * np.ones(1), glasgow_layout(seconds), power=power * np.ones((1, t.size)))
+
+
+def test_images_in_sub_folders_are_traced_to_their_files_and_self_contradicting_names_skipped(model_path, tmp_path,
+                                                                                            capsys):
+    """Campaigns reuse subject numbers: predictions carry the path relative to --images and metrics come per
+    sub-folder; a name whose activity digit contradicts its A-code is warned about and skipped, not fatal."""
+    root = tmp_path / "images"
+    _glasgow_like(root / "campA" / "1P01A01R01.png", 1.5, 10.0)  # walk, approaching
+    _glasgow_like(root / "campB" / "1P01A01R01.png", 1.5, 10.0)  # same name, other campaign
+    _glasgow_like(root / "campB" / "6P02A06R01.png", -1.5)       # fall, receding
+    _glasgow_like(root / "campB" / "3P03A02R01.png", 0.5)        # digit 3 (stand) but code A02 (sit)
+    out = tmp_path / "out"
+    assert main(["evaluate", "--model", str(model_path), "--images", str(root), "--out", str(out)]) == 0
+    assert "warning: campB/3P03A02R01.png: skipped, its name contradicts itself" in capsys.readouterr().err
+    rows = _rows(out / "predictions.csv")
+    assert sorted(r["file"] for r in rows) == ["campA/1P01A01R01.png", "campB/1P01A01R01.png",
+                                               "campB/6P02A06R01.png"]
+    by_folder = {r["folder"]: r for r in _rows(out / "metrics_by_folder.csv")}
+    assert set(by_folder) == {"campA", "campB"} and by_folder["campA"]["n"] == "1" and by_folder["campB"]["n"] == "2"
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["by_folder"]["campB"]["n"] == 2
+    assert [u["file"] for u in metrics["unreadable"]] == ["campB/3P03A02R01.png"]

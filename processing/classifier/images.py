@@ -10,7 +10,9 @@ Images of an activity the model does not know (drink, for the five-class seed mo
 in accuracy: they are reported separately as how many were given each predicted class.
 
 Output files (`write_image_evaluation`): confusion.png / confusion.csv (the seed's Fig. 11 layout),
-metrics.json, predictions.csv (file, subject, true, predicted, one probability column per class) and,
+metrics.json (with a report per sub-folder under "by_folder"), metrics_by_folder.csv when the images
+lie in several sub-folders, predictions.csv (file: its path relative to the image folder, subject, true,
+predicted, one probability column per class) and,
 if there are unknown-class images, unknown_predictions.csv (same columns) and unknown_counts.csv (one
 row per unknown activity, one column per predicted class).
 """
@@ -61,15 +63,32 @@ class ImageEvaluation:
             row[self.classes[int(p.argmax())]] += 1
         return out
 
+    def by_folder(self) -> dict[str, Report]:
+        """{sub-folder of the image folder ('.' for its top): report on its known-class images}."""
+        groups: dict[str, list[int]] = {}
+        for i, im in enumerate(self.known):
+            groups.setdefault(str(Path(im.name).parent), []).append(i)
+        out = {}
+        for folder, idx in sorted(groups.items()):
+            y = np.array([self.classes.index(self.known[i].activity) for i in idx])
+            out[folder] = classification_report(y, self.known_proba[idx].argmax(1), self.classes)
+        return out
+
     def summary(self) -> str:
-        """Human-readable lines: the report on known classes, then the unknown-class predictions."""
+        """Human-readable lines: the report on known classes (and per sub-folder when there are several),
+        then the unknown-class predictions."""
         lines = [self.report.summary() if self.report else "no images of a class the model knows"]
+        folders = self.by_folder()
+        if len(folders) > 1:
+            lines += [f"  {f}: n = {r.n}, accuracy = {100 * r.accuracy:.2f} %" for f, r in folders.items()]
         for act, counts in self.unknown_counts().items():
             n = sum(counts.values())
             lines.append(f"  {act} (not a model class, {n} images, not in accuracy) predicted as: "
                          + ", ".join(f"{c} {k}" for c, k in counts.items() if k))
         if self.unreadable:
-            lines.append(f"  {len(self.unreadable)} unreadable images skipped (first: {self.unreadable[0][1]})")
+            n = len(self.unreadable)
+            lines.append(f"  {n} image{'s' if n > 1 else ''} skipped, unreadable or with a self-contradicting name "
+                         f"(first: {self.unreadable[0][1]})")
         return "\n".join(lines)
 
 
@@ -117,7 +136,16 @@ def write_image_evaluation(ev: ImageEvaluation, out_dir: str | Path, title: str,
         for act, row in counts.items():
             w.writerow([act, *row.values(), sum(row.values())])
         files.append(write_text_atomic(out / "unknown_counts.csv", buf.getvalue()))
+    folders = ev.by_folder()
+    if len(folders) > 1:
+        buf = io.StringIO(newline="")
+        w = csv.writer(buf)
+        w.writerow(["folder", "n", "accuracy", "macro_f1"])
+        for f, r in folders.items():
+            w.writerow([f, r.n, f"{r.accuracy:.6f}", f"{r.macro_f1:.6f}"])
+        files.append(write_text_atomic(out / "metrics_by_folder.csv", buf.getvalue()))
     doc = {"title": title, **(ev.report.as_dict() if ev.report else {"n": 0}),
+           "by_folder": {f: r.as_dict() for f, r in folders.items()},
            "unknown_classes": {a: {"n": sum(r.values()), "predicted": r} for a, r in counts.items()},
            "n_unknown": len(ev.unknown), "unreadable": [{"file": n, "error": e} for n, e in ev.unreadable],
            **(extra or {})}

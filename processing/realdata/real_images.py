@@ -42,7 +42,8 @@ class RealImage:
     """One labelled real recording read from an image.
 
     Attributes:
-        name: file name (no folder).
+        name: the image's path relative to the folder it was loaded from (sub-folders kept: the Glasgow
+            campaigns reuse subject numbers, so a file name alone does not identify a recording).
         path: the image file.
         activity: label (project names: walk, sit, stand, pick, drink, fall).
         subject: person number (P36 -> 36), or None if unknown.
@@ -115,12 +116,15 @@ def list_images(folder: str | Path) -> list[Path]:
 
 def image_label(path: Path, labels: dict | None) -> tuple[str, int | None]:
     """(activity, subject) of an image: from `labels` if it names the file, else from its Glasgow name."""
-    from processing.realdata.spectrogram_image import SpectrogramImageError, parse_glasgow_name
+    from processing.realdata.spectrogram_image import (ContradictoryNameError, SpectrogramImageError,
+                                                       parse_glasgow_name)
 
     if labels is not None and path.name in labels:
         return labels[path.name]
     try:
         g = parse_glasgow_name(path)
+    except ContradictoryNameError:
+        raise
     except SpectrogramImageError as e:
         hint = "" if labels is None else " and it is not in --labels"
         raise RealImageError(f"{e}{hint}; pass --labels CSV (file,activity[,subject])") from None
@@ -150,27 +154,40 @@ def read_real_image(path: str | Path, noise_column_db: float = NOISE_COLUMN_DB) 
 def load_real_images(folder: str | Path, labels: dict | None = None, people: frozenset[int] | None = None,
                      activities=None, noise_column_db: float = NOISE_COLUMN_DB
                      ) -> tuple[list[RealImage], list[tuple[str, str]]]:
-    """(images, unreadable) of every image under `folder` whose subject is in `people` (None: all) and
-    whose activity is in `activities` (None: all). Unreadable images are skipped and listed as (name,
-    reason); an image without a usable label is an error (RealImageError), as is an empty selection."""
+    """(images, skipped) of every image under `folder` whose subject is in `people` (None: all) and whose
+    activity is in `activities` (None: all). Unreadable images, and Glasgow names that contradict themselves
+    (activity digit against A-code, when --labels does not name the file), are skipped with a warning and
+    listed as (path relative to `folder`, reason); any other image without a usable label is an error
+    (RealImageError), as is an empty selection."""
+    import warnings
+
+    from processing.realdata.spectrogram_image import ContradictoryNameError
+
+    folder = Path(folder)
     paths = list_images(folder)
-    chosen = []
+    chosen, bad = [], []
     for p in paths:
-        act, subj = image_label(p, labels)
+        rel = p.relative_to(folder).as_posix()
+        try:
+            act, subj = image_label(p, labels)
+        except ContradictoryNameError as e:  # documented rule: such a label is trusted neither way
+            warnings.warn(f"{rel}: skipped, its name contradicts itself ({str(e).split(': ', 1)[-1]})", stacklevel=2)
+            bad.append((rel, f"name contradicts itself: {e}"))
+            continue
         if people is not None and (subj is None or subj not in people):
             continue
         if activities is not None and act not in activities:
             continue
-        chosen.append((p, act, subj))
+        chosen.append((p, rel, act, subj))
     if not chosen:
         what = "" if people is None else f" of people {_people_text(people)}"
         raise RealImageError(f"no images{what} in {folder} ({len(paths)} images in all)")
-    out, bad = [], []
-    for p, act, subj in chosen:
+    out = []
+    for p, rel, act, subj in chosen:
         try:
-            out.append(RealImage(p.name, p, act, subj, read_real_image(p, noise_column_db)))
+            out.append(RealImage(rel, p, act, subj, read_real_image(p, noise_column_db)))
         except RealImageError as e:
-            bad.append((p.name, str(e)))
+            bad.append((rel, str(e)))
     if not out:
         raise RealImageError(f"none of the {len(chosen)} images in {folder} could be read (first: {bad[0][1]})")
     return out, bad

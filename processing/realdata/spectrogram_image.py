@@ -34,10 +34,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.ndimage import distance_transform_edt
 
+from processing.errors import InputError
 from processing.realdata.ancortek import GLASGOW_ACTIVITY_CODES
 from processing.realdata.colormaps import colormap_inverse
 from processing.dsp.signatures import DSPConfig, Signature, _normalise, mean_velocity
-from processing.errors import InputError
 
 # Colour distance (Euclidean, 8-bit levels) within which a pixel counts as a colormap colour: renderers
 # truncate (or round) 255 c, i.e. <= 1 level per channel, sqrt(3) ~ 1.7 in all; 6 leaves room for
@@ -51,7 +51,7 @@ MAX_OFF_MAP_FRACTION = 0.01
 RGB = tuple[int, int, int]
 
 
-class SpectrogramImageError(ValueError):
+class SpectrogramImageError(InputError):
     """A spectrogram image (or its file name, or layout) cannot be read; the message names the file."""
 
 
@@ -172,6 +172,11 @@ _GLASGOW_NAME = re.compile(r"(\d)P(\d+)A(\d+)R(\d+)", re.IGNORECASE)
 _DIGIT_ACTIVITY = {int(code[1:]): name for code, name in GLASGOW_ACTIVITY_CODES.items()}
 
 
+class ContradictoryNameError(SpectrogramImageError):
+    """A Glasgow file name whose leading activity digit and A-code name different activities (some published
+    files do): its label cannot be trusted either way."""
+
+
 def parse_glasgow_name(name: str | Path) -> GlasgowName:
     """Activity, subject and repetition from a Glasgow file name ``K P<subject> A<code> R<rep>`` (K = code)."""
     stem = Path(name).stem
@@ -183,7 +188,7 @@ def parse_glasgow_name(name: str | Path) -> GlasgowName:
         known = ", ".join(f"{k} {v}" for k, v in _DIGIT_ACTIVITY.items())
         raise SpectrogramImageError(f"{name}: unknown activity digit {digit} (known: {known})")
     if code != digit:
-        raise SpectrogramImageError(f"{name}: activity digit {digit} disagrees with activity code A{code:02d}")
+        raise ContradictoryNameError(f"{name}: activity digit {digit} disagrees with activity code A{code:02d}")
     return GlasgowName(_DIGIT_ACTIVITY[digit], subject, rep, digit, stem)
 
 
