@@ -131,8 +131,7 @@ def test_compiled_lambertian_gains_match_the_reference_maths(mat):
 @pytest.mark.parametrize("mat", [SurfaceMaterial(eta=18.9 - 17.1j, scattering_coefficient=0.5, thickness=0.05),
                                  SurfaceMaterial(eta=None, scattering_coefficient=0.0)])
 def test_compiled_po_gains_match_the_reference_maths(mat):
-    from rtchannel.backends.surface_scattering import (co_polar_reflection, facet_gains, po_sqrt_rcs,
-                                                       slab_reflection, te_fraction)
+    from rtchannel.backends.surface_scattering import co_polar_reflection, facet_gains, po_sqrt_rcs, slab_reflection
     rng = np.random.default_rng(11)
     n_el = 2000
     # Triangles from 0.1 mm (the Taylor branch of the integral) to 5 cm (many wavelengths) across.
@@ -147,7 +146,8 @@ def test_compiled_po_gains_match_the_reference_maths(mat):
     k_i, u_b = (c - p_a) / ra[:, None], (p_b - c) / rb[:, None]
     half = -k_i + u_b
     cos_b = np.sum(n * half, axis=1) / np.linalg.norm(half, axis=1)
-    rho = -co_polar_reflection(*slab_reflection(cos_b, mat.eta, mat.thickness, LAM), te_fraction(k_i, n))
+    rho = -co_polar_reflection(k_i, half / np.linalg.norm(half, axis=1)[:, None],
+                               *slab_reflection(cos_b, mat.eta, mat.thickness, LAM))
     ref_po = (np.sqrt(1 - mat.scattering_coefficient ** 2) * LAM / ((4 * np.pi) ** 1.5 * ra * rb)
               * po_sqrt_rcs(corners, -k_i, u_b, n, rho, LAM))
     ref = facet_gains(mat, LAM, c, n, area, corners, p_a, p_b, False) + ref_po

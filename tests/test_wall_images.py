@@ -261,7 +261,7 @@ def test_double_bounce_wall_selection():
 
 @pytest.mark.parametrize("eta, thickness", [(5.24 - 0.4j, 0.2), (5.24 - 0.4j, 0.0), (3.0 - 0.01j, 0.01), (None, 0.0)])
 def test_compiled_wall_factor_matches_the_reference_maths(eta, thickness):
-    from rtchannel.backends.surface_scattering import co_polar_reflection, te_fraction, wall_factor
+    from rtchannel.backends.surface_scattering import co_polar_reflection, wall_factor
 
     w = PlanarWall("w", point=np.zeros(3), normal=np.array([0.6, 0.0, 0.8]), polygon=np.zeros((3, 3)),
                    relative_permittivity=eta, thickness=thickness)
@@ -270,6 +270,6 @@ def test_compiled_wall_factor_matches_the_reference_maths(eta, thickness):
     k /= np.linalg.norm(k, axis=1, keepdims=True)
     cos_w = np.abs(k @ w.normal)
     e = None if eta is None else complex(eta)
-    ref = np.conj(co_polar_reflection(*slab_reflection(cos_w, e, thickness or None, 0.0124),
-                                      te_fraction(k, np.broadcast_to(w.normal, k.shape))))
+    ref = np.conj(co_polar_reflection(k, np.broadcast_to(w.normal, k.shape),
+                                      *slab_reflection(cos_w, e, thickness or None, 0.0124)))
     np.testing.assert_allclose(wall_factor(w, cos_w, k, 0.0124), ref, rtol=0, atol=1e-14)  # |Gamma| <= 1

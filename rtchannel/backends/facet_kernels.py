@@ -40,7 +40,7 @@ def indexed_gains(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, thickne
 
 
 def wall_factors(cos_w, k_in, normal, eta, thickness, wavelength) -> np.ndarray:
-    """conj(c^2 r_te - (1 - c^2) r_tm) [N] of a planar slab (normal [3], permittivity eta or None for a
+    """conj(co-polar reflection coefficient) [N] (`surface_scattering.co_polar_reflection`) of a planar slab (normal [3], permittivity eta or None for a
     perfect conductor, thickness 0 for a half-space) at incidence cosines cos_w [N] for incident
     directions k_in [N, 3]; see `surface_scattering.wall_factor`."""
     out = np.empty(len(cos_w), complex)
@@ -62,16 +62,45 @@ def _te_fraction_one(kx, ky, kz, nx, ny, nz):
     return 0.5  # normal incidence or vertical propagation: split equally
 
 
+@numba.njit(cache=True, inline="always")
+def _theta_hat_one(kx, ky, kz):
+    """`surface_scattering.theta_hat` of one unit direction."""
+    tx, ty, tz = -kx * kz, -ky * kz, kx * kx + ky * ky
+    tn = np.sqrt(tx * tx + ty * ty + tz * tz)
+    if tn > 1e-9:
+        return tx / tn, ty / tn, tz / tn
+    return 1.0, 0.0, 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def _co_polar_one(kx, ky, kz, nx, ny, nz, r_te, r_tm):
+    """`surface_scattering.co_polar_reflection` of one unit incident direction k and unit normal n."""
+    kn = kx * nx + ky * ny + kz * nz
+    rx, ry, rz = kx - 2 * kn * nx, ky - 2 * kn * ny, kz - 2 * kn * nz
+    ix, iy, iz = _theta_hat_one(kx, ky, kz)
+    ox, oy, oz = _theta_hat_one(rx, ry, rz)
+    px, py, pz = ky * nz - kz * ny, kz * nx - kx * nz, kx * ny - ky * nx
+    pn = np.sqrt(px * px + py * py + pz * pz)
+    if pn <= 1e-9:  # normal incidence: any e_perp across the ray
+        px, py, pz = iy * kz - iz * ky, iz * kx - ix * kz, ix * ky - iy * kx
+        pn = np.sqrt(px * px + py * py + pz * pz)
+    px, py, pz = px / pn, py / pn, pz / pn
+    ax, ay, az = py * kz - pz * ky, pz * kx - px * kz, px * ky - py * kx  # e_par of the incident ray
+    bx, by, bz = py * rz - pz * ry, pz * rx - px * rz, px * ry - py * rx  # e_par of the reflected ray
+    return (r_te * (ix * px + iy * py + iz * pz) * (px * ox + py * oy + pz * oz)
+            + r_tm * (ix * ax + iy * ay + iz * az) * (bx * ox + by * oy + bz * oz))
+
+
 @numba.njit(cache=True)
 def _walls_serial(cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
     for e in range(cos_w.shape[0]):
         kn = np.sqrt(k_in[e, 0] ** 2 + k_in[e, 1] ** 2 + k_in[e, 2] ** 2)
-        c2 = _te_fraction_one(k_in[e, 0] / kn, k_in[e, 1] / kn, k_in[e, 2] / kn, normal[0], normal[1], normal[2])
         if pec:
-            out[e] = -1.0
+            r_te, r_tm = -1.0 + 0j, 1.0 + 0j
         else:
             r_te, r_tm = _slab_one(min(max(cos_w[e], 0.0), 1.0), eta, thickness, wavelength)
-            out[e] = np.conj(c2 * r_te - (1 - c2) * r_tm)
+        out[e] = np.conj(_co_polar_one(k_in[e, 0] / kn, k_in[e, 1] / kn, k_in[e, 2] / kn,
+                                       normal[0], normal[1], normal[2], r_te, r_tm))
 
 
 @numba.njit(cache=True, inline="always")
@@ -151,13 +180,13 @@ def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, th
         return
     hx, hy, hz = ux - kx, uy - ky, uz - kz  # u_tx + u_rx (facet -> antennas)
     nh = nx * hx + ny * hy + nz * hz
-    rho = 1.0 + 0j
-    if not pec:
-        if p_a[e, 0] != p_b[e, 0] or p_a[e, 1] != p_b[e, 1] or p_a[e, 2] != p_b[e, 2]:
-            cos_b = min(max(nh / max(np.sqrt(hx * hx + hy * hy + hz * hz), 1e-12), 0.0), 1.0)
-            r_te, r_tm = _slab_one(cos_b, eta, thickness, wavelength)
-        # else monostatic: the bisector is the incidence direction, r_te and r_tm are those at cos_i
-        rho = -(c2 * r_te - (1 - c2) * r_tm)
+    h_len = max(np.sqrt(hx * hx + hy * hy + hz * hz), 1e-12)
+    if not pec and (p_a[e, 0] != p_b[e, 0] or p_a[e, 1] != p_b[e, 1] or p_a[e, 2] != p_b[e, 2]):
+        cos_b = min(max(nh / h_len, 0.0), 1.0)
+        r_te, r_tm = _slab_one(cos_b, eta, thickness, wavelength)
+    # else monostatic: the bisector is the incidence direction, r_te and r_tm are those at cos_i
+    # the facet mirrors tx onto rx about the bisector (sign: a conducting plate at broadside gives +1)
+    rho = -_co_polar_one(kx, ky, kz, hx / h_len, hy / h_len, hz / h_len, r_te, r_tm)
     # Triangle integral of exp(j w . (r - centroid)), w = -k (u_tx + u_rx): phases t_i at the corners.
     k = 2 * np.pi / wavelength
     v0, v1, v2 = verts[b, faces[f, 0]], verts[b, faces[f, 1]], verts[b, faces[f, 2]]

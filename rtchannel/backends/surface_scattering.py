@@ -37,11 +37,11 @@ one facet. A flat plate then gives 4 pi A^2 / lambda^2 at broadside and a finely
 
 Phase convention: the shared synthesiser forms exp(+j 2 pi f tau) (the beat of tx times conj(rx)), so
 the gains returned here are the complex conjugates of Sionna's channel coefficients (exp(-j 2 pi f tau)).
-Polarisation: both antennas vertically polarised (theta-hat, Sionna's "V"); the incident field is split
-into TE/TM power fractions c^2, 1 - c^2 at each surface; |Gamma| = sqrt(c^2 |r_te|^2 + (1-c^2)|r_tm|^2)
-(Sionna's Gamma); the complex co-polar coefficient is c^2 r_te - (1-c^2) r_tm (fixed-frame sign, so that
-r_te = -r_tm at normal incidence does not cancel; exact for incidence planes containing or orthogonal to
-the polarisation, an approximation otherwise).
+Polarisation: both antennas vertically polarised (theta-hat, Sionna's "V"); the diffuse model splits the
+incident power into TE/TM fractions c^2, 1 - c^2 at each surface, |Gamma| = sqrt(c^2 |r_te|^2 + (1-c^2)
+|r_tm|^2) (Sionna's Gamma); wall, floor and PO reflections use the complex co-polar coefficient projected
+on each ray's polarisation basis (`co_polar_reflection`, exact in every geometry: +r_tm for a vertically
+polarised ray over the floor, r_te for a horizontal ray on a side wall).
 """
 from __future__ import annotations
 
@@ -131,9 +131,37 @@ def gamma_magnitude(r_te, r_tm, c2):
     return np.sqrt(c2 * np.abs(r_te) ** 2 + (1 - c2) * np.abs(r_tm) ** 2)
 
 
-def co_polar_reflection(r_te, r_tm, c2):
-    """Scalar co-polar reflection coefficient c^2 r_te - (1 - c^2) r_tm (-1 for a perfect conductor)."""
-    return c2 * r_te - (1 - c2) * r_tm
+def theta_hat(k: np.ndarray) -> np.ndarray:
+    """Unit vertical-polarisation vectors [..., 3] of waves travelling along unit `k` [..., 3]: z projected
+    on the transverse plane, (k x z) x k normalised (x for vertical propagation, where it is undefined)."""
+    t = np.stack([-k[..., 0] * k[..., 2], -k[..., 1] * k[..., 2], k[..., 0] ** 2 + k[..., 1] ** 2], axis=-1)
+    n = np.linalg.norm(t, axis=-1, keepdims=True)
+    return np.where(n > 1e-9, t / np.where(n > 1e-9, n, 1.0), np.array([1.0, 0.0, 0.0]))
+
+
+def co_polar_reflection(k_in, normal, r_te, r_tm):
+    """Co-polar reflection coefficient of a vertically polarised wave, exact in every geometry (Sionna RT's
+    bases): with e_perp = k_i x n / |k_i x n|, e_par = e_perp x k for the incident and the reflected ray
+    (k_r = k_i - 2 (k_i . n) n) and theta-hat the vertical-polarisation vector of each ray,
+
+        Gamma = r_te (th_i . e_perp)(e_perp . th_r) + r_tm (th_i . e_par_i)(e_par_r . th_r).
+
+    A vertical dipole over a conductor (r_te = -1, r_tm = +1) gives +1 at every angle (its image is in
+    phase), a side wall seen by horizontal rays r_te. k_in [..., 3] unit incident directions, normal [..., 3]
+    unit normals; r_te, r_tm [...] the Fresnel/slab coefficients. At normal incidence e_perp is any vector
+    across the ray (the result does not depend on it)."""
+    k = np.asarray(k_in, float)
+    n = np.broadcast_to(np.asarray(normal, float), k.shape)
+    k_r = k - 2 * np.einsum("...i,...i->...", k, n)[..., None] * n
+    th_i, th_r = theta_hat(k), theta_hat(k_r)
+    e_perp = np.cross(k, n)
+    nrm = np.linalg.norm(e_perp, axis=-1, keepdims=True)
+    fallback = np.cross(th_i, k)  # normal incidence: any e_perp across the ray
+    e_perp = np.where(nrm > 1e-9, e_perp / np.where(nrm > 1e-9, nrm, 1.0),
+                      fallback / np.linalg.norm(fallback, axis=-1, keepdims=True))
+    e_par_i, e_par_r = np.cross(e_perp, k), np.cross(e_perp, k_r)
+    dot = lambda a, b: np.einsum("...i,...i->...", a, b)  # noqa: E731
+    return r_te * dot(th_i, e_perp) * dot(e_perp, th_r) + r_tm * dot(th_i, e_par_i) * dot(e_par_r, th_r)
 
 
 def _f_alpha(alpha: int, cos_i: np.ndarray) -> np.ndarray:
@@ -240,8 +268,8 @@ def po_sqrt_rcs(corners, u_tx, u_rx, normal, rho, wavelength: float) -> np.ndarr
 
 def wall_factor(wall, cos_w, k_in, wavelength):
     """Conjugated co-polar slab reflection coefficient of `wall` at incidence cosines cos_w [N] for
-    incident directions k_in [N, 3] (synthesiser phase convention): conj(c^2 r_te - (1 - c^2) r_tm) with
-    `slab_reflection` and `te_fraction` (compiled)."""
+    incident directions k_in [N, 3] (synthesiser phase convention): conj(`co_polar_reflection`) with
+    `slab_reflection` (compiled)."""
     eta = None if wall.relative_permittivity is None else complex(wall.relative_permittivity)
     return facet_kernels.wall_factors(cos_w, k_in, np.asarray(wall.normal, float), eta,
                                       getattr(wall, "thickness", None) or 0.0, wavelength)
@@ -284,9 +312,12 @@ def facet_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, corners, p_
         diffuse = scale * diffuse_sqrt_rcs(mat, k_i, u_b, n, area, gamma_magnitude(r_te, r_tm, c2))
         if po:
             half = -k_i + u_b
-            cos_b = np.einsum("ij,ij->i", n, half) / np.maximum(np.linalg.norm(half, axis=1), 1e-12)
+            h_len = np.maximum(np.linalg.norm(half, axis=1), 1e-12)
+            cos_b = np.einsum("ij,ij->i", n, half) / h_len
             rb_te, rb_tm = slab_reflection(cos_b, mat.eta, mat.thickness, wavelength)
-            rho = -co_polar_reflection(rb_te, rb_tm, c2)
+            # the facet mirrors tx onto rx about the bisector: the co-polar coefficient of that reflection,
+            # sign-normalised so that a conducting plate at broadside gives rho = +1 (Knott's PO form)
+            rho = -co_polar_reflection(k_i, half / h_len[:, None], rb_te, rb_tm)
             specular = (scale * np.sqrt(1.0 - mat.scattering_coefficient ** 2)
                         * po_sqrt_rcs(corners, -k_i, u_b, n, rho, wavelength))
     g = diffuse * phase if phase is not None else diffuse.astype(complex)
