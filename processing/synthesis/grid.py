@@ -85,7 +85,7 @@ def _sincos(x):  # pragma: no cover - jitted
 
 @numba.njit(parallel=True, cache=True, fastmath=FASTMATH, error_model="numpy")
 def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1, f_ref, x_scale, n_grid, kc,
-            y_a, y_b, drift, out, pm, proj):  # pragma: no cover
+            y_a, y_b, drift, kappa, out, pm, proj):  # pragma: no cover
     """Add every path's chirp phasors, spread by the kernel, onto the grid rows out[C, 2 L] (re, im adjacent).
 
     t: chirp start times [C] (s) of this chunk, chirps first_index.. of the recording t_first + k pri, k up to
@@ -93,7 +93,9 @@ def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1,
     on the chunk (reference cells are re-chosen on a global chirp schedule), so chunking changes the
     output by float rounding only. knots: interval edges [I+1] (s). y0, y1, m0, m1: delay (s) and
     delay rate at the start and end of each interval [I, P] (cubic Hermite). g0, g1: complex gains at the
-    start/end of each interval [I, P] (linear in between); NaN rates count as 0. f_ref: carrier of the phases (Hz). x_scale: grid
+    start/end of each interval [I, P] (linear in between); NaN rates count as 0. f_ref: carrier of the phases (Hz).
+    kappa: range-Doppler coupling (s per s/s, `synthesis.exact.coupling_s`): a path's cell follows
+    tau + kappa dtau/dt while its phase follows tau. x_scale: grid
     cells per second of delay. kc: fitted weights [w + 2, 8]. y_a, y_b: offset -> polynomial variable.
     pm: [L, 2K] projection matrix (re, im adjacent) or [L, 0]: then proj[C, 2K] receives each finished row
     times pm over the cells this interval touched (K = 0: no projection).
@@ -180,6 +182,9 @@ def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1,
                 e1i[jj], e1r[jj] = _sincos(two_pi * d1)
                 e2i[jj], e2r[jj] = _sincos(two_pi * d2)
                 e3i[jj], e3r[jj] = _sincos(two_pi * d3)
+            for jj in range(nb):  # the cell follows tau + kappa dtau/dt (Doppler shift inside the chirp)
+                a3, a2, a1 = cf[0, jj], cf[1, jj], cf[2, jj]
+                cf[1, jj], cf[2, jj], cf[3, jj] = a2 + 3.0 * kappa * a3, a1 + 2.0 * kappa * a2, cf[3, jj] + kappa * a1
             rate = 0.0  # largest |d tau / dt| over the chirps of this interval
             for jj in range(nb):
                 v = (abs(3 * cf[0, jj]) * s_max + abs(2 * cf[1, jj])) * s_max + abs(cf[2, jj])
@@ -371,7 +376,7 @@ def spread(t: np.ndarray, knots: np.ndarray, y0: np.ndarray, y1: np.ndarray, m0:
         first_index = int(round((t[0] - t_first) / pri))
         _spread(np.ascontiguousarray(t, np.float64), pri, t_first, t_last, first_index,
                 np.ascontiguousarray(knots, np.float64), y0, y1, m0, m1, g0, g1, float(f_ref), float(slope * m / fs), m,
-                np.ascontiguousarray(kernel.weights), a, a / 2, float(kernel.drift), out, pm, proj)
+                np.ascontiguousarray(kernel.weights), a, a / 2, float(kernel.drift), float(f_ref / slope), out, pm, proj)
     return out.view(np.complex128) if matrix is None else proj.view(np.complex128)
 
 
