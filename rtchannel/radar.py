@@ -69,6 +69,10 @@ class Link(BaseModel):
 # frequencies up to 48 m). max_range_m only bounds the ranges the waveform must resolve (validation).
 GLASGOW_WAVEFORM = Waveform(carrier_hz=5.8e9, bandwidth_hz=400e6, pri_s=1e-3, samples_per_chirp=128,
                             max_range_m=24.0)
+# Elevation half-power beamwidth of the 580AD kit's Yagis [deg]: no data sheet was found; commercial
+# 5.8 GHz Yagis of 12-17 dBi state 18-45 deg in the E/H planes, so a deployment-randomised plan draws from
+# this range (the default 24 deg makes the model's directivity the 17 dBi quoted for the kit).
+GLASGOW_HPBW_EL_RANGE_DEG = (18.0, 45.0)
 # Height of the radar above the floor and horizontal distance to the person [m]. The dataset states
 # "1-4 m" for the person; the antenna height is not documented, a tripod gives 0.5-2 m.
 GLASGOW_DISTANCE_RANGE_M = (1.0, 4.0)
@@ -131,7 +135,8 @@ class RadarConfig(BaseModel):
         return cls(links=[Link(name=name, tx=tuple(float(x) for x in position))], **overrides)
 
     @classmethod
-    def glasgow(cls, height_m: float = 1.0, distance_m: float = 2.5, **overrides) -> "RadarConfig":
+    def glasgow(cls, height_m: float = 1.0, distance_m: float = 2.5, downtilt_deg: float = 0.0,
+                hpbw_el_deg: float | None = None, **overrides) -> "RadarConfig":
         """The Glasgow dataset's radar: one monostatic Ancortek SDR-KIT 580AD link ``radar1`` at
         (`distance_m`, 0, `height_m`) (m) facing a person at the origin (procedural motions face +x, so they
         face it), Yagi antennas (`ANCORTEK_580AD`) with a horizontal boresight toward the person's vertical
@@ -141,6 +146,10 @@ class RadarConfig(BaseModel):
         Args:
             height_m: antenna height above the floor [m], 0.5..2.0 (a tripod; undocumented in the dataset).
             distance_m: horizontal distance radar - person [m], 1.0..4.0 (the dataset's "1-4 m").
+            downtilt_deg: beam tilt below horizontal [deg] (negative: up), -60..60; how the kit was aimed is
+                not published.
+            hpbw_el_deg: the Yagis' elevation half-power beamwidth [deg] (default 24, `ANCORTEK_580AD`);
+                `GLASGOW_HPBW_EL_RANGE_DEG` is the honest range (no data sheet of the kit's antennas).
             overrides: other RadarConfig fields (e.g. ``receiver=None`` for noiseless IQ).
 
         Raises:
@@ -154,6 +163,8 @@ class RadarConfig(BaseModel):
                                                and lo <= value <= hi):
                 raise ConfigError(f"Radar.glasgow: {name} must be a number in {lo:g}..{hi:g} m, got {value!r}")
         antenna = ANCORTEK_580AD.antenna.model_copy(update={"look_at": (0.0, 0.0, float(height_m))})
+        antenna = type(antenna).model_validate({**antenna.model_dump(), "downtilt_deg": float(downtilt_deg),
+                                                **({} if hpbw_el_deg is None else {"hpbw_el_deg": float(hpbw_el_deg)})})
         fields = {"waveform": GLASGOW_WAVEFORM, "dsp": glasgow_dsp(), "antenna": antenna,
                   "receiver": ANCORTEK_580AD.receiver,
                   "links": [Link(name="radar1", tx=(float(distance_m), 0.0, float(height_m)))], **overrides}

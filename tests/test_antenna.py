@@ -209,3 +209,23 @@ def test_tabulated_directivities_are_the_computed_ones():
         assert antenna._directivity.__wrapped__(kind, params) == pytest.approx(tabulated, rel=1e-12)
         spec = {"gaussian": GaussianBeam, "yagi": YagiBeam}[kind].model_validate(dict(params, boresight=(0, 1, 0)))
         assert directivity_dbi(spec) == 10 * math.log10(tabulated)
+
+
+@pytest.mark.parametrize("tilt", [-10.0, 0.0, 8.0, 20.0])
+def test_downtilt_moves_the_peak_and_keeps_the_elevation_beamwidth(tilt):
+    """The gain peaks at the tilted boresight, and its half-power points lie +-HPBW_el / 2 about it in the
+    vertical plane (the pattern is only turned): checked on the 580AD-like Yagi, 24 deg in elevation."""
+    from processing.radar.antenna import YagiBeam, gain, peak_gain_dbi
+
+    pos = np.array([3.0, 0.0, 1.0])  # gain() is the amplitude factor sqrt(G): 20 log10 of it is G in dBi
+    ant = YagiBeam(hpbw_az_deg=24.0, hpbw_el_deg=24.0, peak_gain_dbi=17.0, front_to_back_db=20.0, floor_db=25.0,
+                   look_at=(0.0, 0.0, 1.0), downtilt_deg=tilt)
+    el = np.radians(np.linspace(-60, 60, 24001))  # elevation of the direction, seen from the antenna
+    dirs = np.stack([-np.cos(el), 0 * el, np.sin(el)], axis=-1)  # toward -x (the look-at point), up and down
+    g = gain(ant, pos, pos + dirs)  # amplitude factor sqrt(G)
+    g_db = 20 * np.log10(g)
+    peak = np.degrees(el[np.argmax(g_db)])
+    assert peak == pytest.approx(-tilt, abs=0.01)
+    assert g_db.max() == pytest.approx(peak_gain_dbi(ant), abs=1e-6) and peak_gain_dbi(ant) == 17.0
+    half = np.degrees(el[g_db >= g_db.max() - 3.0103])
+    assert half.min() == pytest.approx(-tilt - 12.0, abs=0.05) and half.max() == pytest.approx(-tilt + 12.0, abs=0.05)

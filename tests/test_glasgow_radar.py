@@ -73,3 +73,35 @@ def test_glasgow_radar_round_trips_through_json():
     r = RadarConfig.glasgow(height_m=0.9, distance_m=2.0)
     again = RadarConfig.model_validate(r.model_dump(mode="json"))
     assert again == r and again.dsp.mti_cutoff_hz == pytest.approx(3.75)
+
+
+def test_glasgow_radar_takes_tilt_and_elevation_beamwidth():
+    r = RadarConfig.glasgow(height_m=1.2, distance_m=3.0, downtilt_deg=10.0, hpbw_el_deg=40.0)
+    ant = r.antenna
+    assert ant.downtilt_deg == 10.0 and ant.hpbw_el_deg == 40.0
+    b = ant.boresight_unit(r.links[0].tx_pos)
+    assert np.degrees(np.arcsin(b[2])) == pytest.approx(-10.0, abs=1e-9)  # 10 deg below horizontal
+
+
+def test_plan_draws_tilt_and_elevation_beamwidth_per_item_for_the_glasgow_kit(tmp_path):
+    import yaml
+
+    from rtchannel.dataset.plan import expand, load_plan
+    from rtchannel.errors import ConfigError
+
+    plan = {"name": "g", "motion": {"sources": [{"procedural": "fall", "variants": 3, "params": {"duration": 1.0}}]},
+            "physical": {"radar": "glasgow", "angles_deg": [0.0], "downtilt_deg": [-5.0, 20.0],
+                         "hpbw_el_deg": [18.0, 45.0],
+                         "link_sets": [{"name": "d3", "links": [{"name": "radar1", "tx": [3.0, 0.0, 1.0]}]}]}}
+    p = tmp_path / "g.yaml"
+    p.write_text(yaml.safe_dump(plan))
+    items = expand(load_plan(p))
+    tilts = [it.radar["antenna"]["downtilt_deg"] for it in items]
+    widths = [it.radar["antenna"]["hpbw_el_deg"] for it in items]
+    assert all(-5.0 <= t <= 20.0 for t in tilts) and len(set(tilts)) == 3
+    assert all(18.0 <= w <= 45.0 for w in widths) and len(set(widths)) == 3
+    assert [it.radar["antenna"]["downtilt_deg"] for it in expand(load_plan(p))] == tilts  # seeded
+    plan["physical"]["radar"] = "seed"
+    p.write_text(yaml.safe_dump(plan))
+    with pytest.raises((ConfigError, ValueError), match="apply to radar: glasgow"):
+        load_plan(p)

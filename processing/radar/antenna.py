@@ -70,6 +70,10 @@ class _Antenna(BaseModel):
     boresight: Vec3 | None = Field(None, description="boresight direction (any length > 0); or give look_at")
     look_at: Vec3 | None = Field(None, description="point the boresight aims at [m]; or give boresight")
     up: Vec3 = Field((0.0, 0.0, 1.0), description="reference 'up' for azimuth/elevation (any length > 0)")
+    downtilt_deg: float = Field(0.0, ge=-60.0, le=60.0, description="beam tilt below the direction given by "
+                                "boresight/look_at [deg], in the vertical plane through it (negative: uptilt). "
+                                "Room radars are tilted by hand, typically a few to 20 deg down from a "
+                                "tripod; +-60 bounds what keeps a person in a forward beam")
 
     @model_validator(mode="after")
     def _check_orientation(self):
@@ -108,7 +112,16 @@ class _Antenna(BaseModel):
                                  "the boresight is undefined")
         else:
             b = np.array([1.0, 0.0, 0.0])  # isotropic antennas need no orientation
-        return b / np.linalg.norm(b)
+        b = b / np.linalg.norm(b)
+        if self.downtilt_deg:
+            up = np.asarray(self.up, float) / np.linalg.norm(self.up)
+            h = b - (b @ up) * up  # horizontal part: the tilt keeps the azimuth
+            if np.linalg.norm(h) < 1e-9:
+                raise InputError("downtilt_deg needs a boresight that is not parallel to up")
+            h /= np.linalg.norm(h)
+            el = math.asin(max(-1.0, min(1.0, float(b @ up)))) - math.radians(self.downtilt_deg)
+            b = math.cos(el) * h + math.sin(el) * up
+        return b
 
     def frame(self, position) -> np.ndarray:
         """Rotation [3, 3] whose columns are the local axes x' (boresight), y', z' (up) in world

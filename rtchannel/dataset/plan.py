@@ -233,6 +233,13 @@ def expand(plan: Plan) -> list[WorkItem]:
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
                 radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
                          "links": [link.model_dump(mode="json") for link in ls.links], **ph.kit(ls.links)}
+                if ph.downtilt_deg is not None or ph.hpbw_el_deg is not None:  # own stream: other draws unchanged
+                    arng = np.random.default_rng(derive_seed(plan.seed, f"antenna:{motion_id}-p{pi}"))
+                    ant = dict(radar["antenna"])
+                    for key in ("downtilt_deg", "hpbw_el_deg"):
+                        if getattr(ph, key) is not None:
+                            ant[key] = float(_draw(getattr(ph, key), arng))
+                    radar["antenna"] = ant
                 for gi, (gs, snr, cl) in enumerate(sig_axes):
                     item_id = f"{motion_id}-p{pi:0{wp}d}-s{gi:0{ws}d}"
                     items.append(WorkItem(

@@ -215,6 +215,20 @@ class PhysicalLayer(_Model):
                                               "24 GHz defaults) or glasgow (Radar.glasgow: 5.8 GHz 580AD Yagis "
                                               "looking horizontally at the z axis; waveform and DSP default to "
                                               "the Glasgow ones)")
+    downtilt_deg: Scalar | None = Field(None, description="glasgow kit: beam tilt below horizontal [deg] "
+                                        "(value or [low, high] drawn per item), -60..60")
+    hpbw_el_deg: Scalar | None = Field(None, description="glasgow kit: elevation beamwidth of the Yagis [deg] "
+                                       "(value or [low, high] drawn per item), 5..170")
+
+    @field_validator("downtilt_deg")
+    @classmethod
+    def _tilt_range(cls, v):
+        return v if v is None else _within(v, -60.0, 60.0, "downtilt_deg", " deg")
+
+    @field_validator("hpbw_el_deg")
+    @classmethod
+    def _hpbw_range(cls, v):
+        return v if v is None else _within(v, 5.0, 170.0, "hpbw_el_deg", " deg")
 
     @model_validator(mode="before")
     @classmethod
@@ -238,6 +252,8 @@ class PhysicalLayer(_Model):
     def _angles(self) -> "PhysicalLayer":
         if self.directions is not None and self.angles_deg is not None:
             raise InputError("give either 'directions' or 'angles_deg', not both")
+        if self.radar != "glasgow" and (self.downtilt_deg is not None or self.hpbw_el_deg is not None):
+            raise InputError("downtilt_deg and hpbw_el_deg apply to radar: glasgow (the seed's horns are fixed)")
         if isinstance(self.directions, list):
             for d in self.directions:
                 direction_angles(d)  # raises a ValueError naming the bad direction
