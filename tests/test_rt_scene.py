@@ -294,3 +294,17 @@ def test_a_scene_loaded_without_sionna_does_not_disturb_sionna_traces():
     v, f = plate_mesh(0.2, 0.2, 2)
     r = monostatic_rcs(sionna_backend(PEC, samples_per_src=20_000, specular=True, diffuse=False), v, f, distance=3.0)
     assert r["n_paths"] == 1 and mine.sionna_scene is None
+
+
+def test_skin_scattering_coefficient_follows_roughness_in_wavelengths():
+    """Kirchhoff: S^2 = 1 - exp(-(4 pi sigma_h / lambda)^2), sigma_h fixed by S = 0.5 at 24.125 GHz. By hand:
+    g(24.125 GHz) = -ln(0.75) = 0.2877, so at 5.8 GHz g = 0.2877 (5.8 / 24.125)^2 = 0.01663 and
+    S = sqrt(1 - exp(-0.01663)) = 0.1284; sigma_h = sqrt(0.2877) lambda / 4 pi = 0.530 mm."""
+    from rtchannel.scene.skin import SkinMaterial, roughness_rms_m, scattering_coefficient
+
+    assert roughness_rms_m() == pytest.approx(0.5304e-3, rel=1e-3)
+    assert scattering_coefficient(24.125e9) == 0.5
+    assert scattering_coefficient(5.8e9) == pytest.approx(0.1284, abs=5e-4)
+    assert scattering_coefficient(77e9) == pytest.approx(np.sqrt(1 - np.exp(-0.2877 * (77 / 24.125) ** 2)), rel=1e-3)
+    assert SkinMaterial.at(5.8e9).scattering_coefficient == pytest.approx(0.1284, abs=5e-4)
+    assert SkinMaterial.at(5.8e9, scattering_coefficient=0.5).scattering_coefficient == 0.5  # still a knob

@@ -51,7 +51,11 @@ def _check_walk(sig, motion, window_s):
     assert 0.9 <= slope <= 1.1, slope
     assert rmse <= 0.25, rmse
     moving = np.abs(vp) >= MOVING_MPS
-    err = np.abs(_range_peak(sig) - rp)[moving]
+    # an FMCW radar shows a moving body at r - kappa v (range-Doppler coupling, 6 cm at 1.3 m/s here)
+    from processing.radar.waveform import Waveform
+    from processing.synthesis.exact import coupling_s
+
+    err = np.abs(_range_peak(sig) - (rp - coupling_s(Waveform()) * vp))[moving]
     assert err.max() <= 0.3, err.max()
     return rp, r_final
 

@@ -85,7 +85,7 @@ def _sincos(x):  # pragma: no cover - jitted
 
 @numba.njit(parallel=True, cache=True, fastmath=FASTMATH, error_model="numpy")
 def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1, f_ref, x_scale, n_grid, kc,
-            y_a, y_b, drift, kappa, out, pm, proj):  # pragma: no cover
+            y_a, y_b, drift, kappa, delta, out, pm, proj):  # pragma: no cover
     """Add every path's chirp phasors, spread by the kernel, onto the grid rows out[C, 2 L] (re, im adjacent).
 
     t: chirp start times [C] (s) of this chunk, chirps first_index.. of the recording t_first + k pri, k up to
@@ -95,7 +95,8 @@ def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1,
     delay rate at the start and end of each interval [I, P] (cubic Hermite). g0, g1: complex gains at the
     start/end of each interval [I, P] (linear in between); NaN rates count as 0. f_ref: carrier of the phases (Hz).
     kappa: range-Doppler coupling (s per s/s, `synthesis.exact.coupling_s`): a path's cell follows
-    tau + kappa dtau/dt while its phase follows tau. x_scale: grid
+    tau + kappa dtau/dt; delta (s per s/s): its phase at the centre sample follows f_ref (tau + delta dtau/dt),
+    the exact synthesiser's tone (phase f_s tau at the chirp's start) seen at the centre. x_scale: grid
     cells per second of delay. kc: fitted weights [w + 2, 8]. y_a, y_b: offset -> polynomial variable.
     pm: [L, 2K] projection matrix (re, im adjacent) or [L, 0]: then proj[C, 2K] receives each finished row
     times pm over the cells this interval touched (K = 0: no projection).
@@ -170,6 +171,9 @@ def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1,
                 gn[2, jj], gn[3, jj] = (gb.real - ga.real) * inv_h, (gb.imag - ga.imag) * inv_h
             for jj in range(nb):
                 a3, a2, a1, a0 = cf[0, jj], cf[1, jj], cf[2, jj], cf[3, jj]
+                # the phase at the centre sample includes the Doppler phase since the chirp's start:
+                # f_ref (tau + delta dtau/dt), again a cubic (delta = kappa (f_ref - f_s) / f_ref)
+                a2, a1, a0 = a2 + 3.0 * delta * a3, a1 + 2.0 * delta * a2, a0 + delta * a1
                 # phase and its forward differences at step PRI, in cycles (reduced modulo 1 in float64)
                 p0 = f_ref * (((a3 * s_lo + a2) * s_lo + a1) * s_lo + a0)
                 p0 -= np.floor(p0)
@@ -376,7 +380,8 @@ def spread(t: np.ndarray, knots: np.ndarray, y0: np.ndarray, y1: np.ndarray, m0:
         first_index = int(round((t[0] - t_first) / pri))
         _spread(np.ascontiguousarray(t, np.float64), pri, t_first, t_last, first_index,
                 np.ascontiguousarray(knots, np.float64), y0, y1, m0, m1, g0, g1, float(f_ref), float(slope * m / fs), m,
-                np.ascontiguousarray(kernel.weights), a, a / 2, float(kernel.drift), float(f_ref / slope), out, pm, proj)
+                np.ascontiguousarray(kernel.weights), a, a / 2, float(kernel.drift), float(f_ref / slope),
+                float((f_ref - start_hz) / slope), out, pm, proj)
     return out.view(np.complex128) if matrix is None else proj.view(np.complex128)
 
 
