@@ -120,3 +120,25 @@ def test_dtw_is_finite_where_pruning_failed():
     a = np.zeros_like(b)  # the pruned DTW of exactly this pair is inf
     d = normalised_dtw(a, b, scale=1.0) * np.sqrt(b.size)
     assert np.isfinite(d) and d <= np.linalg.norm(a - b) + 1e-12
+
+
+def test_single_realisation_floor_is_the_distance_between_two_single_reference_runs(monkeypatch):
+    """Reference seeds 1..4 put all power in velocity bins 0, 1, 1, 0 (bins 0.25 m/s apart): the paired single
+    runs (seeds 1-2, 3-4) are one bin apart, so the floor is an EMD of exactly 0.25 m/s, while the half-split
+    self error of the mean is 0 (the even and odd runs make the same mixture)."""
+    from types import SimpleNamespace
+
+    import rtchannel.analysis.speed_error as se
+
+    v = np.arange(8) * 0.25
+
+    def fake_run(setting, motion, radar, repeats, seed=0):
+        p = np.zeros((8, 20))
+        b = (seed // 2) % 2
+        p[b] = 1.0
+        return 1.0, {"r1": SimpleNamespace(p_vt=p, velocity=v, mean_velocity=np.full(20, v[b]))}
+
+    monkeypatch.setattr(se, "_run", fake_run)
+    _, _, self_error = se.converged_reference(se.REFERENCE, None, None, seeds=4)
+    assert self_error["single_run_emd_m_s"] == pytest.approx(0.25, abs=1e-12)
+    assert self_error["emd_m_s"] == pytest.approx(0.0, abs=1e-12)
