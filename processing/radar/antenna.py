@@ -238,7 +238,8 @@ _TABULATED = {
 
 def _directivity_params(spec) -> tuple[str, tuple]:
     """The key of a pattern's shape: (kind, sorted shape parameters without orientation and peak gain)."""
-    return spec.kind, tuple(sorted(spec.model_dump(exclude={"boresight", "look_at", "up", "peak_gain_dbi"}).items()))
+    orientation = {"boresight", "look_at", "up", "downtilt_deg"}
+    return spec.kind, tuple(sorted(spec.model_dump(exclude=orientation | {"peak_gain_dbi"}).items()))
 
 
 @lru_cache(maxsize=64)

@@ -34,7 +34,7 @@ def shape_key(spec) -> str:
     shape (kind, beamwidths, gain, floor...; orientation excluded, it belongs to each device)."""
     if spec.kind == "isotropic":
         return "iso"
-    shape = json.dumps(spec.model_dump(exclude={"boresight", "look_at", "up"}), sort_keys=True)
+    shape = json.dumps(spec.model_dump(exclude={"boresight", "look_at", "up", "downtilt_deg"}), sort_keys=True)
     return f"rtchannel_{spec.kind}_{hashlib.sha1(shape.encode()).hexdigest()[:12]}"
 
 
