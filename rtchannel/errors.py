@@ -31,7 +31,12 @@ class RadarPlacementError(InputError):
     """An antenna is too close to (or inside) scene geometry or the body."""
 
 
+# appended to errors about the body reaching an antenna: the options that move the person
+MOVE_THE_PERSON = ("; move the person (CLI --start X Y / --heading DEG / --trim, plan motion starts and "
+                   "headings_deg, API Motion.transformed) or the radar")
+
+
 USER_ERRORS: tuple[type[BaseException], ...] = (InputError, ValidationError)
 
-__all__ = ["USER_ERRORS", "InputError", "ConfigError", "SceneFileError", "RadarPlacementError", "CheckpointError",
+__all__ = ["MOVE_THE_PERSON", "USER_ERRORS", "InputError", "ConfigError", "SceneFileError", "RadarPlacementError", "CheckpointError",
            "TrainingError", "DatasetFormatError"]

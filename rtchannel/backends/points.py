@@ -20,7 +20,7 @@ from processing.radar.propagation import bistatic_delay, path_amplitude
 from rtchannel.radar import RadarConfig
 from rtchannel.body.scatterers import PointScatterers, seed_scatterers
 from rtchannel.motion.pose import Motion
-from rtchannel.errors import RadarPlacementError
+from rtchannel.errors import MOVE_THE_PERSON, RadarPlacementError
 from processing.errors import InputError
 
 
@@ -59,7 +59,7 @@ def _check_clearance(traj: np.ndarray, times: np.ndarray, link) -> None:
             raise RadarPlacementError(
                 f"link '{link.name}': the {which} at ({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m is "
                 f"{d[k, m] * 100:.1f} cm from body scatterer {m} at t = {times[k]:.2f} s: inside or touching the "
-                f"body (minimum {MIN_SCATTERER_CLEARANCE_M * 100:g} cm)")
+                f"body (minimum {MIN_SCATTERER_CLEARANCE_M * 100:g} cm){MOVE_THE_PERSON}")
 
 
 def point_paths(motion: Motion, radar: RadarConfig, gains: np.ndarray | None = None,

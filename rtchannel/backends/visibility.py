@@ -259,7 +259,7 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
     Only frames whose nearest vertex is closer than 0.5 m get the exact point-triangle test; inside is
     judged by the outward normal of the closest triangle."""
     from rtchannel.body.meshgeom import closest_point_on_triangles
-    from rtchannel.scene.rt_scene import RadarPlacementError
+    from rtchannel.errors import MOVE_THE_PERSON, RadarPlacementError
 
     for p in sources:
         # squared distances per coordinate: no [K, V, 3] temporary (the test only picks frames to check)
@@ -278,4 +278,4 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
                 where = "inside" if inside else f"{d[j] * 100:.2f} cm from"
                 raise RadarPlacementError(
                     f"antenna at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m is {where} the body at t = {times[k]:.2f} s "
-                    f"(minimum clearance {min_distance * 100:g} cm)")
+                    f"(minimum clearance {min_distance * 100:g} cm){MOVE_THE_PERSON}")

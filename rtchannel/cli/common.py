@@ -76,8 +76,14 @@ def add_motion_args(p) -> None:
     p.add_argument("--duration", type=finite_float, help="activity duration [s] (procedural)")
     p.add_argument("--distance", type=finite_float, help="walking distance [m] (procedural walk only, default 4)")
     p.add_argument("--start", type=finite_float, nargs=2, metavar=("X", "Y"),
-                   help="start of the hips' ground point [m]; default: walks are centred on the origin "
-                   "(toward Radar 1 at direction 1), other activities start at the origin")
+                   help="start of the hips' ground point [m]; default: walks (procedural or --motion-file "
+                   "--activity walk) are centred on the origin, other activities start at the origin")
+    p.add_argument("--heading", type=finite_float, metavar="DEG",
+                   help="direction the person faces at the start [deg, counter-clockwise from +x, toward "
+                   "Radar 1 at direction 1]; default 0")
+    p.add_argument("--trim", type=finite_float, nargs=2, metavar=("START", "END"),
+                   help="--motion-file: keep only START..END seconds of the take (e.g. one sit-down of a "
+                   "longer recording)")
     p.add_argument("--fps", type=finite_float, default=60.0, help="motion frame rate [Hz] (default 60)")
     p.add_argument("--seed", type=seed_int, default=0, help="random seed, 0..2^63-1 (default 0)")
 
@@ -202,23 +208,45 @@ def load_radar(args):
     return radar.rotated(angle), angle
 
 
+def placed_take(motion, start=None, heading_deg=None, trim=None):
+    """An imported take placed as the CLI places it: `trim` (t0, t1) [s] first, turned to face `heading_deg`
+    [deg] about its first frame's hips, then started at `start` (x, y) [m]; without a start a walk is centred
+    on the origin like a procedural one, any other take starts over the origin (as imported)."""
+    from rtchannel.motion.augment import augment
+    from rtchannel.motion.compose import centre_walk
+
+    if trim is not None and not 0 <= trim[0] < trim[1]:
+        raise UserError(f"--trim: need 0 <= START < END seconds, got {trim[0]:g} {trim[1]:g}")
+    if trim is not None and trim[0] >= motion.duration:
+        raise UserError(f"--trim: START {trim[0]:g} s lies after the take's end ({motion.duration:.2f} s)")
+    out = augment(motion, heading_deg=heading_deg or 0.0, trim=None if trim is None else (trim[0], trim[1]),
+                  start=None if start is None else tuple(start))
+    if start is None and motion.activity == "walk":
+        out = centre_walk(out)
+    return out
+
+
 def build_motion(args):
     """The motion the user asked for: a motion-capture file or a procedural activity."""
-    import numpy as np
 
     from rtchannel.motion.pose import Motion
 
+    heading = getattr(args, "heading", None)
+    trim = getattr(args, "trim", None)
     if args.motion_file is not None:
         if not args.motion_file.is_file():
             raise UserError(f"motion file not found: {args.motion_file}")
         motion = Motion.from_file(args.motion_file, height=args.height, activity=args.activity)
-        if args.start is not None:
-            motion = motion.transformed(0.0, offset=(*(np.asarray(args.start) - motion.positions[0, 0, :2]), 0.0))
+        motion = placed_take(motion, start=args.start, heading_deg=heading, trim=trim)
         return motion if args.fps == motion.fps else motion.resampled(args.fps)
+    if trim is not None:
+        raise UserError("--trim applies to --motion-file; a procedural activity takes --duration")
     params = {k: v for k, v in (("speed", args.speed), ("duration", args.duration),
                                 ("distance", args.distance)) if v is not None}
     if args.start is not None:
         params["start"] = tuple(args.start)
+    if heading is not None:
+        params["heading_deg"] = heading
     try:
         return Motion.procedural(args.activity, height=args.height, fps=args.fps, seed=args.seed, **params)
     except ValidationError as e:

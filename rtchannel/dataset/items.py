@@ -58,20 +58,14 @@ def build_motion(m: dict) -> Motion:
     """The augmented motion of an item's motion dict (cached per process by its key)."""
     def make():
         from rtchannel.motion.augment import augment
-        from rtchannel.motion.compose import back_and_forth, fit_clip
+        from rtchannel.motion.compose import back_and_forth, centre_walk, fit_clip
 
         motion = augment(_base_motion(m), time_scale=m["time_scale"], mirror=m["mirror"], trim=m.get("trim"),
                          heading_deg=m["heading_deg"], start=None if m["start"] == "auto" else m["start"])
         if m.get("walk_legs", 1) > 1:
             motion = back_and_forth(motion, m["walk_legs"], m["walk_turn_s"])
         if m["start"] == "auto" and m["activity"] == "walk":
-            # a walk centred on the origin: it passes the room centre whatever its heading and length. A
-            # back-and-forth walk with an even number of legs ends where it began: the middle of its path
-            # is then the middle of the hips' extent, not of its end points
-            hips = motion.positions[:, 0, :2]
-            mid = (0.5 * (hips.min(axis=0) + hips.max(axis=0)) if m.get("walk_legs", 1) > 1
-                   else 0.5 * (hips[0] + hips[-1]))
-            motion = motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
+            motion = centre_walk(motion, m.get("walk_legs", 1))
         if m.get("clip_s") is not None:
             motion = fit_clip(motion, m["clip_s"], m["clip_lead"], m.get("clip_start_s"))
         if m.get("idle") is not None:  # after the clip fit: the held poses before and after move too

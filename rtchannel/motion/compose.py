@@ -98,3 +98,13 @@ def fit_clip(motion: Motion, clip_s: float, lead: float = 0.5, start_s: float | 
         {"clip_s": float(clip_s), "start_s": float(start_s)}
     return replace(motion, positions=motion.positions[idx], rotations=motion.rotations[idx],
                    params={**motion.params, "clip": clip})
+
+
+def centre_walk(motion: Motion, back_and_forth_legs: int = 1) -> Motion:
+    """A walk moved horizontally so that its path is centred on the origin (as procedural walks are): it
+    then passes the room centre whatever its heading and length. The middle of a one-way walk is that of its
+    end points; a back-and-forth walk (`back_and_forth_legs` > 1) may end where it began, so its middle is
+    the middle of the hips' extent."""
+    hips = motion.positions[:, 0, :2]
+    mid = (0.5 * (hips.min(axis=0) + hips.max(axis=0)) if back_and_forth_legs > 1 else 0.5 * (hips[0] + hips[-1]))
+    return motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
