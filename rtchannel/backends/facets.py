@@ -285,7 +285,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
                 min_relative_gain_db: float | None = DEFAULT_MIN_RELATIVE_GAIN_DB,
                 progress=None, velocity_method: str = "spline", timing: dict | None = None,
                 batch_frames: int = 16, image_lod: str | None = DEFAULT_IMAGE_LOD, seed: int | None = 0,
-                double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE) -> dict[str, PathSet]:
+                double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE, clutter: bool = True) -> dict[str, PathSet]:
     """Persistent facet path sets (one per link) of the skinned avatar moving with `motion`.
 
     The defaults are the fast setting (see `DEFAULT_TRACE_FPS`); ``trace_fps=None, image_lod=None,
@@ -298,6 +298,8 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         lod: avatar level of detail ("full", "10k", "5k", "2k").
         trace_fps: rate [Hz] of visibility/gain evaluation (None: every motion frame); a speed knob.
             Coarser than the motion only when below its frame rate.
+        clutter: add the static clutter of the scene's walls, floor and furniture, shadowed by the body
+            (`rtchannel.backends.clutter`); nothing to add in free space.
         walls: include first-order body-wall image paths.
         po: add the physical-optics term to the diffuse gain (default on; off leaves only the diffuse part).
         skin: `rtchannel.scene.rt_scene.SkinMaterial` (default dry skin at the carrier).
@@ -352,9 +354,19 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     timing["skinning"] = timing.get("skinning", 0.0) + time.perf_counter() - t0
     links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
     material = SurfaceMaterial.from_skin(rt.skin, wf.carrier_hz)
-    return mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material,
-                      trace_frame_indices(motion.n_frames, motion.fps, trace_fps),
-                      rt.walls if walls else (), po, min_relative_gain_db, progress, timing, batch_frames,
-                      image_mesh, seed, double_bounce)
+    trace_idx = trace_frame_indices(motion.n_frames, motion.fps, trace_fps)
+    paths = mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material, trace_idx,
+                       rt.walls if walls else (), po, min_relative_gain_db, progress, timing, batch_frames,
+                       image_mesh, seed, double_bounce)
+    if clutter and rt.static_meshes:
+        from rtchannel.backends.clutter import clutter_paths, merged
+
+        t1 = time.perf_counter()
+        # shadows need no more than the image LOD's body (2k by default; its BVH is 5x cheaper)
+        shadow_v, shadow_f = (image_mesh[0], image_mesh[1]) if image_mesh is not None else (verts, avatar.faces)
+        static = clutter_paths(rt, radar, motion.times, shadow_v[trace_idx], shadow_f, trace_idx, seed, batch_frames)
+        paths = {name: merged(ps, static[name]) for name, ps in paths.items()}
+        timing["clutter"] = timing.get("clutter", 0.0) + time.perf_counter() - t1
+    return paths
 
 

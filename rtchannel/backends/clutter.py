@@ -1,0 +1,235 @@
+"""Static clutter of the mesh backends: the returns of the scene's walls, floor and furniture.
+
+Real radars see the room as well as the person; the slow-time MTI removes those static returns, but not
+completely: a causal filter starting at rest passes them for its settling time (the start-up transient of
+real recordings), and the body shadows part of the room frame by frame (a moving notch the MTI keeps).
+
+The scene's static triangles are cut into patches no larger than half a range bin (`patch_size_m`), so the
+clutter spreads over the range bins it occupies. Each patch is a persistent path antenna -> patch ->
+antenna with the same surface model as the body's facets (`surface_scattering.facet_gains`): the diffuse
+Lambertian term with the wall's roughness (`WALL_ROUGHNESS_M`, `rtchannel.scene.skin.scattering_coefficient`,
+a fixed random phase per patch) and the physical-optics term, whose patches add up coherently to the
+wall's specular return. A patch counts only when the segments antenna -> patch are free of static geometry
+and of the body; the body's shadow is evaluated at the backend's traced frames (the 2k body) and faded
+linearly between them. Antenna patterns apply as for every path.
+
+A reduced set, not every triangle of a detailed scene: patches finer than half a range bin add nothing the
+DSP can resolve, and the patches of one delay cell (1/16 of a range bin) are merged into one path
+(`CELLS_PER_RANGE_BIN`), so an 8 m x 8 m room costs a few hundred paths, not tens of thousands.
+"""
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from scipy import sparse
+
+from processing.dsp.fast_time import max_range
+from processing.pathset import PathSet
+from processing.radar.propagation import bistatic_delay
+from processing.radar.waveform import C0
+
+# rms height of a plastered or concrete wall finish (honest range 0.3-3 mm: float-finished concrete to rough
+# plaster): with the Kirchhoff model it gives walls S = 0.80 at 24 GHz and 0.23 at 5.8 GHz
+WALL_ROUGHNESS_M = 1e-3
+CLUTTER_ID_BASE = 1 << 40  # clutter path ids start here: never a facet id (facet + faces x kind)
+CELLS_PER_RANGE_BIN = 16  # delay cells of the merged clutter paths per range bin c / 2B
+MAX_PATCHES = 200_000  # bounds memory for very large scenes (a 8 m x 8 m room at 0.19 m is ~12k patches)
+
+
+@dataclass(frozen=True)
+class Patches:
+    """Clutter patches: triangles [K, 3, 3] (m) with centroids, unit normals [K, 3], areas [K] (m^2), and per
+    patch its shape index and slab (complex permittivity, thickness [m]) at the carrier."""
+
+    corners: np.ndarray
+    centroids: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+    shape: np.ndarray
+    eta: np.ndarray
+    thickness: np.ndarray
+
+
+def patch_size_m(range_resolution_m: float) -> float:
+    """Largest patch edge [m]: half a range bin, within 0.1-0.5 m."""
+    return float(min(max(0.5 * range_resolution_m, 0.1), 0.5))
+
+
+def _subdivide(a: np.ndarray, b: np.ndarray, c: np.ndarray, n: int) -> np.ndarray:
+    """The n^2 congruent sub-triangles [n^2, 3, 3] of triangle (a, b, c) on a barycentric grid."""
+    pts = lambda i, j: a + (b - a) * (i / n) + (c - a) * (j / n)  # noqa: E731
+    out = []
+    for i in range(n):
+        for j in range(n - i):
+            out.append((pts(i, j), pts(i + 1, j), pts(i, j + 1)))
+            if i + j < n - 1:
+                out.append((pts(i + 1, j), pts(i + 1, j + 1), pts(i, j + 1)))
+    return np.array(out)
+
+
+_PATCHES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def scene_patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
+    """Patches of every static triangle of an `RTScene` (edges at most `size_m` [m]); computed once per
+    scene, carrier and size (the geometry is static)."""
+    mine = _PATCHES.setdefault(rt_scene, {})
+    key = (float(frequency_hz), float(size_m))
+    if key not in mine:
+        mine[key] = _patches(rt_scene, frequency_hz, size_m)
+    return mine[key]
+
+
+def _patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
+    corners, shape, eta, thick = [], [], [], []
+    w = 2 * math.pi * frequency_hz
+    for k, (_, v, f, slab) in enumerate(rt_scene._static):  # noqa: SLF001 - the scene's static meshes
+        eps, sigma, thickness = (float(x) for x in slab)
+        e = complex(eps, -sigma / (w * 8.8541878128e-12))
+        for tri in v[f]:
+            edge = max(np.linalg.norm(tri[1] - tri[0]), np.linalg.norm(tri[2] - tri[1]), np.linalg.norm(tri[0] - tri[2]))
+            sub = _subdivide(tri[0], tri[1], tri[2], max(1, int(math.ceil(edge / size_m))))
+            corners.append(sub)
+            shape += [k] * len(sub)
+            eta += [e] * len(sub)
+            thick += [thickness] * len(sub)
+    if not corners:
+        z = np.zeros((0, 3))
+        return Patches(np.zeros((0, 3, 3)), z, z, np.zeros(0), np.zeros(0, int), np.zeros(0, complex), np.zeros(0))
+    c3 = np.concatenate(corners)
+    if len(c3) > MAX_PATCHES:
+        raise ValueError(f"the scene's static geometry makes {len(c3)} clutter patches (limit {MAX_PATCHES})")
+    cr = np.cross(c3[:, 1] - c3[:, 0], c3[:, 2] - c3[:, 0])
+    dbl = np.linalg.norm(cr, axis=1)
+    keep = dbl > 1e-12
+    c3, cr, dbl = c3[keep], cr[keep], dbl[keep]
+    return Patches(c3, c3.mean(axis=1), cr / dbl[:, None], 0.5 * dbl, np.asarray(shape)[keep],
+                   np.asarray(eta)[keep], np.asarray(thick)[keep])
+
+
+def clutter_gains(patches: Patches, tx, rx, wavelength: float, frequency_hz: float, seed: int | None = 0,
+                  roughness_m: float = WALL_ROUGHNESS_M) -> np.ndarray:
+    """Complex path gains [K] (synthesiser convention, isotropic antennas) of the patches on tx -> patch -> rx
+    (m); patches whose front side does not face both antennas get 0 (two-sided: the normal is turned to
+    the transmitter)."""
+    from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases, facet_gains
+    from rtchannel.scene.skin import scattering_coefficient
+
+    tx, rx = np.asarray(tx, float), np.asarray(rx, float)
+    n = patches.normals * np.sign(np.einsum("ij,ij->i", patches.normals, tx - patches.centroids))[:, None]
+    faces_both = np.einsum("ij,ij->i", n, rx - patches.centroids) > 0
+    s = scattering_coefficient(frequency_hz, roughness_m)
+    phase = diffuse_phases(seed, len(patches.areas))
+    out = np.zeros(len(patches.areas), complex)
+    for key in {(e, t) for e, t in zip(patches.eta, patches.thickness)}:
+        sel = np.flatnonzero((patches.eta == key[0]) & (patches.thickness == key[1]) & faces_both)
+        if sel.size == 0:
+            continue
+        mat = SurfaceMaterial(eta=key[0], scattering_coefficient=s, thickness=key[1] or None)
+        out[sel] = facet_gains(mat, wavelength, patches.centroids[sel], n[sel], patches.areas[sel],
+                               patches.corners[sel], tx, rx, True, None if phase is None else phase[sel])
+    return out
+
+
+def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray | None = None,
+                  body_faces: np.ndarray | None = None, trace_idx: np.ndarray | None = None,
+                  seed: int | None = 0, batch_frames: int = 16) -> dict[str, PathSet]:
+    """Persistent clutter path sets, one per link of `radar`, at `times` [F] (s).
+
+    Args:
+        rt_scene: the `RTScene` whose static geometry makes the clutter.
+        radar: `RadarConfig` (links, carrier, antennas, DSP range resolution).
+        times: frame times [F] (s) of the motion the clutter goes with.
+        body_vertices, body_faces: the skinned body at `trace_idx` frames [T, V, 3] (m) and its triangles
+            [F_b, 3], which shadow the clutter; None: an empty room.
+        trace_idx: frame indices [T] the body is given at (default every frame); shadows fade linearly
+            between them.
+        seed: seed of the patches' fixed diffuse phases.
+    """
+    from rtchannel.backends.visibility import _STOP, caster_for
+
+    wf = radar.waveform
+    patches = scene_patches(rt_scene, wf.carrier_hz, patch_size_m(wf.range_resolution))
+    f_n, k_n = len(times), len(patches.areas)
+    trace_idx = np.arange(f_n) if trace_idx is None else np.asarray(trace_idx)
+    antennas = np.unique(np.concatenate([[lk.tx_pos for lk in radar.links], [lk.rx_pos for lk in radar.links]]),
+                         axis=0)
+    # free[a, t, k]: segment antenna a -> patch k free of static geometry (and of the body at traced frame t)
+    free = np.ones((len(antennas), max(len(trace_idx), 1), k_n), bool)
+    if k_n:
+        # an empty room: one degenerate (never hit) triangle on the first patch stands in for the body
+        verts = (np.broadcast_to(patches.centroids[0], (1, 3, 3)).copy() if body_vertices is None
+                 else np.asarray(body_vertices, float))
+        faces = np.array([[0, 1, 2]]) if body_faces is None else np.asarray(body_faces)
+        caster = caster_for(rt_scene, faces, verts, antennas, batch_frames)
+        dirs, dists = [], []
+        for pos in antennas:
+            d = patches.centroids - pos
+            dist = np.linalg.norm(d, axis=1)
+            dirs.append(d / dist[:, None])
+            dists.append(dist - _STOP)
+        for s0 in range(0, len(verts), batch_frames):  # one BVH build per batch, every antenna's rays
+            chunk = verts[s0:s0 + batch_frames]
+            caster.load(chunk)
+            cells = np.repeat(np.arange(len(chunk)), k_n)
+            for a, pos in enumerate(antennas):
+                hit = caster.occluded_cells(np.broadcast_to(pos, (len(cells), 3)), np.tile(dirs[a], (len(chunk), 1)),
+                                            np.tile(dists[a], len(chunk)), cells)
+                free[a, s0:s0 + len(chunk)] = ~hit.reshape(len(chunk), k_n)
+        if body_vertices is None:
+            free = np.broadcast_to(free[:, :1], (len(antennas), len(trace_idx), k_n))
+    index = {tuple(p): i for i, p in enumerate(antennas)}
+    # clutter outside the ranges the DSP processes (plus two bins of range-FFT leakage) cannot reach it
+    lo = max(radar.dsp.min_range_m - 2 * wf.range_resolution, 0.0)
+    hi = max_range(wf, radar.dsp) + 2 * wf.range_resolution
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    out = {}
+    for lk in radar.links:
+        ft, fr = free[index[tuple(lk.tx_pos)]], free[index[tuple(lk.rx_pos)]]
+        vis_t = (ft & fr).astype(float)  # [T, K]
+        if len(trace_idx) == f_n:
+            vis = vis_t
+        else:  # linear fade between traced frames, as the facets' own gains
+            j = np.clip(np.searchsorted(trace_idx, np.arange(f_n), side="right") - 1, 0, max(len(trace_idx) - 2, 0))
+            j1 = np.minimum(j + 1, len(trace_idx) - 1)
+            span = np.where(j1 > j, trace_idx[j1] - trace_idx[j], 1)
+            w = np.clip((np.arange(f_n) - trace_idx[j]) / span, 0.0, 1.0)[:, None]
+            vis = (1 - w) * vis_t[j] + w * vis_t[j1]
+        g = clutter_gains(patches, lk.tx_pos, lk.rx_pos, wf.wavelength, wf.carrier_hz, seed)
+        g = g * radar.link_gain(lk, patches.centroids)
+        tau_all = bistatic_delay(patches.centroids, lk.tx_pos, lk.rx_pos)
+        keep = np.flatnonzero((g != 0) & (np.abs(tau_all * C0 / 2 - mid) <= half))  # within the processed ranges
+        tau = tau_all[keep]
+        # patches in one delay cell of 1/(16 B) become one path at the cell's delay, each carrying its phase
+        # offset at the band centre: exact in slow time (the shadows included), in fast time off by at most
+        # pi B / (16 B) / 2 = 0.1 rad at the chirp's ends (1/32 of a range bin of smear)
+        step = 1.0 / (CELLS_PER_RANGE_BIN * wf.bandwidth_hz)
+        cell = np.round(tau / step).astype(np.int64)
+        cells, inverse = np.unique(cell, return_inverse=True)
+        tau_c = cells * step
+        w_k = g[keep] * np.exp(2j * np.pi * wf.carrier_hz * (tau - tau_c[inverse]))
+        to_cells = sparse.csr_matrix((w_k, (np.arange(keep.size), inverse)), shape=(keep.size, len(cells)))
+        gains = np.asarray((to_cells.T @ vis[:, keep].T).T)  # [F, C]: sum over each cell's patches of vis x w
+        out[lk.name] = PathSet(times=np.asarray(times, float), delays=np.broadcast_to(tau_c, (f_n, len(cells))).copy(),
+                               gains=gains, ids=CLUTTER_ID_BASE + cells, delay_rates=np.zeros((f_n, len(cells))),
+                               link=lk.name)
+    return out
+
+
+def merged(a: PathSet, b: PathSet) -> PathSet:
+    """Two persistent path sets of one link at the same frame times as one (paths side by side)."""
+    rates = None
+    if a.delay_rates is not None or b.delay_rates is not None:
+        rates = np.concatenate([np.zeros_like(a.delays) if a.delay_rates is None else a.delay_rates,
+                                np.zeros_like(b.delays) if b.delay_rates is None else b.delay_rates], axis=1)
+    return PathSet(times=a.times, delays=np.concatenate([a.delays, b.delays], axis=1),
+                   gains=np.concatenate([a.gains, b.gains], axis=1), ids=np.concatenate([a.ids, b.ids]),
+                   delay_rates=rates, link=a.link)
+
+
+__all__ = ["WALL_ROUGHNESS_M", "Patches", "patch_size_m", "scene_patches", "clutter_gains", "clutter_paths",
+           "merged", "CLUTTER_ID_BASE"]
