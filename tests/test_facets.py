@@ -32,7 +32,7 @@ def _radar(*links) -> RadarConfig:
 def test_moving_body_toward_radar_shortens_nearest_delay_exactly():
     m = _motion(2)
     radar = _radar()
-    p0 = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None)["r"]
+    p0 = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None, clutter=False)["r"]
     col = np.nanargmin(p0.delays[0])
     av = load_avatar(LOD)
     c = skin_vertices(av, m, [0])[0][av.faces[p0.ids[col]]].mean(axis=0)
@@ -40,7 +40,7 @@ def test_moving_body_toward_radar_shortens_nearest_delay_exactly():
     # (every other point gets closer by at most 0.1 m), so the shortest delay drops by 2 * 0.1 / c0.
     u = (np.asarray(TX) - c) / np.linalg.norm(np.asarray(TX) - c)
     m1 = Motion(m.rig, m.fps, m.rotations, m.positions + 0.1 * u)
-    p1 = facet_paths(m1, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None)["r"]
+    p1 = facet_paths(m1, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None, clutter=False)["r"]
     change = np.nanmin(p0.delays[0]) - np.nanmin(p1.delays[0])
     assert abs(change - 2 * 0.1 / C0) < 1e-12  # 1 ps (float64 delays: ~1e-18 s)
 
@@ -51,7 +51,7 @@ def test_delay_rates_match_delay_differences():
     # agree to the O(h^2) truncation (1e-5 of the peak rate measured at 240 fps). (The default "spline"
     # velocities differ by up to 2 % at one kink of the procedural walk: a property of the motion.)
     ps = facet_paths(m, _radar(), scene="free_space", lod=LOD, walls=False, velocity_method="central",
-                     trace_fps=None)["r"]
+                     trace_fps=None, clutter=False)["r"]
     on = np.all(ps.gains != 0, axis=0)
     assert on.sum() > 100
     fd = np.gradient(ps.delays[:, on], m.times, axis=0)[2:-2]
@@ -64,11 +64,11 @@ def test_trace_fps_interpolates_between_traced_frames():
     m = _motion(13)
     radar = _radar()
     full = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=None,
-                       min_relative_gain_db=None)["r"]
+                       min_relative_gain_db=None, clutter=False)["r"]
     idx = trace_frame_indices(m.n_frames, m.fps, 15.0)
     assert idx.tolist() == [0, 4, 8, 12]
     coarse = facet_paths(m, radar, scene="free_space", lod=LOD, walls=False, trace_fps=15.0,
-                         min_relative_gain_db=None)["r"]
+                         min_relative_gain_db=None, clutter=False)["r"]
     # At a traced frame the gains are the full-rate ones, except that grazing facets may flip visibility
     # with float32 ray rounding (the frame sits in another BVH cell): measured 1 of 921 paths, 1e-11 of
     # the power.
@@ -88,7 +88,7 @@ def test_trace_fps_interpolates_between_traced_frames():
 def test_end_to_end_signatures_are_finite():
     m = _motion(8)
     radar = _radar(Link(name="r1", tx=TX), Link(name="r2", tx=(0.0, -3.0, 1.1)))
-    paths = facet_paths(m, radar, scene="room", lod=LOD, walls=True, min_relative_gain_db=-30)
+    paths = facet_paths(m, radar, scene="room", lod=LOD, walls=True, min_relative_gain_db=-30, clutter=False)
     for ps in paths.values():
         assert ps.persistent and ps.delay_rates is not None
         assert np.all(np.isfinite(ps.gains)) and np.all(np.isfinite(ps.delays[ps.gains != 0]))
@@ -116,7 +116,7 @@ def test_degenerate_triangles_are_skipped_without_nan():
 def test_body_touching_a_wall_gives_finite_paths():
     m = _motion(3, start=(3.85, 0.0))  # the body crosses the x = 4 m wall of the room
     radar = _radar(Link(name="r", tx=(1.5, 0.0, 1.1)))
-    ps = facet_paths(m, radar, scene="room", lod=LOD, walls=True)["r"]
+    ps = facet_paths(m, radar, scene="room", lod=LOD, walls=True, clutter=False)["r"]
     assert ps.n_paths > 50
     assert np.all(np.isfinite(ps.gains)) and np.all(np.isfinite(ps.delays[ps.gains != 0]))
     scene = get_scene("room", LOD, m.rig.height, radar.waveform.carrier_hz)
@@ -130,7 +130,7 @@ def test_body_touching_a_wall_gives_finite_paths():
 def test_body_hidden_behind_a_wall_gives_zero_signal():
     m = _motion(8)
     radar = _radar(Link(name="out", tx=(6.0, 0.0, 1.1)))  # outside the room, behind the x = 4 m wall
-    ps = facet_paths(m, radar, scene="room", lod=LOD, walls=True)["out"]
+    ps = facet_paths(m, radar, scene="room", lod=LOD, walls=True, clutter=False)["out"]
     assert np.all(ps.gains == 0) and ps.n_paths == 1
     quiet = radar.model_copy(update={"receiver": None})  # noiseless receiver: nothing at all
     res = process_paths({"out": ps}, quiet, keep_iq=True)["out"]
@@ -149,7 +149,7 @@ def test_body_hidden_behind_a_wall_gives_zero_signal():
 def test_antenna_inside_the_body_path_is_rejected():
     m = generate("walk", duration=2.5, start=(1.0, 0.0))  # walks through the radar at x = 3 m
     with pytest.raises(RadarPlacementError, match="the body at t"):
-        facet_paths(m, _radar(Link(name="r", tx=(3.0, 0.0, 1.1))), scene="free_space", lod=LOD, walls=False)
+        facet_paths(m, _radar(Link(name="r", tx=(3.0, 0.0, 1.1))), scene="free_space", lod=LOD, walls=False, clutter=False)
 
 
 def test_diffuse_phases_are_seeded_fixed_per_facet_and_shared_by_its_paths():
@@ -160,9 +160,9 @@ def test_diffuse_phases_are_seeded_fixed_per_facet_and_shared_by_its_paths():
     # phase, so the ratio of two seeds is the facet's phase ratio on every path and in every frame.
     opts = dict(scene="room", lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None, po=False,
                 double_bounce=True)
-    a = facet_paths(m, radar, seed=0, **opts)["r"]
-    b = facet_paths(m, radar, seed=1, **opts)["r"]
-    assert np.array_equal(a.gains, facet_paths(m, radar, seed=0, **opts)["r"].gains)  # same seed, same gains
+    a = facet_paths(m, radar, seed=0, **opts, clutter=False)["r"]
+    b = facet_paths(m, radar, seed=1, **opts, clutter=False)["r"]
+    assert np.array_equal(a.gains, facet_paths(m, radar, seed=0, **opts, clutter=False)["r"].gains)  # same seed, same gains
     assert np.array_equal(a.ids, b.ids) and np.array_equal(a.gains != 0, b.gains != 0)
     on = a.gains != 0
     f = a.ids % n_faces
@@ -183,9 +183,9 @@ def test_diffuse_phases_are_seeded_fixed_per_facet_and_shared_by_its_paths():
     # The coarse image mesh has its own seeded phases (stream (seed, its number of faces)), shared by its paths.
     m2 = _motion(2)
     coarse = facet_paths(m2, radar, scene="room", lod="5k", image_lod="2k", trace_fps=None, min_relative_gain_db=None,
-                         po=False, seed=3)["r"]
+                         po=False, seed=3, clutter=False)["r"]
     coarse1 = facet_paths(m2, radar, scene="room", lod="5k", image_lod="2k", trace_fps=None, min_relative_gain_db=None,
-                          po=False, seed=4)["r"]
+                          po=False, seed=4, clutter=False)["r"]
     n5, n2 = load_avatar("5k").n_faces, n_faces
     img = (coarse.ids >= n5) & (coarse.gains[0] != 0)
     fc = coarse.ids[img] % n5

@@ -265,8 +265,8 @@ def test_chair_occludes_exactly_the_body_facets_behind_it(sit, seated_still, whe
     # diffuse only: its power is area-weighted, so hiding a fifth of the facets must cost power; a PO glint
     # on an unhidden facet could dominate either sum and make the power drop say nothing about occlusion
     opts = dict(lod="2k", trace_fps=None, walls=False, min_relative_gain_db=None, image_lod=None, po=False)
-    empty = facet_paths(seated_still, radar, scene=Scene.room(), **opts)["radar1"]
-    chair = facet_paths(seated_still, radar, scene=scene, **opts)["radar1"]
+    empty = facet_paths(seated_still, radar, scene=Scene.room(), **opts, clutter=False)["radar1"]
+    chair = facet_paths(seated_still, radar, scene=scene, **opts, clutter=False)["radar1"]
     seen_empty = set(empty.ids[empty.gains[0] != 0].tolist())
     seen_chair = set(chair.ids[chair.gains[0] != 0].tolist())
     av = load_avatar("2k")
@@ -288,7 +288,7 @@ def test_chair_occludes_exactly_the_body_facets_behind_it(sit, seated_still, whe
 def sit_runs(sit):
     """facets (2k) simulations of the procedural sit in the empty room and with the chair, seed radars."""
     scene = Scene.room().with_chair_for(sit)
-    return {name: simulate(sit, Radar.seed(1), "facets", scene=sc, lod="2k")
+    return {name: simulate(sit, Radar.seed(1), "facets", scene=sc, lod="2k", clutter=False)
             for name, sc in (("empty", Scene.room()), ("chair", scene))}, scene
 
 
@@ -301,7 +301,7 @@ def test_chair_adds_no_paths_and_no_zero_velocity_line(sit, sit_runs):
     n_faces = load_avatar("2k").n_faces
     n_walls = len(get_scene(scene, "2k", 1.75, 24.125e9).walls)
     assert n_walls == len(get_scene("room", "2k", 1.75, 24.125e9).walls) == 5
-    for ps in facet_paths(sit, Radar.seed(1), scene=scene, lod="2k").values():
+    for ps in facet_paths(sit, Radar.seed(1), scene=scene, lod="2k", clutter=False).values():
         # ids are body facets f + F kind: direct (0), single-bounce images (1..2W), double bounce (up to
         # 1 + 3W + W^2 with every wall pair; see rtchannel.backends.facets): nothing else exists
         assert ps.ids.min() >= 0 and ps.ids.max() < n_faces * (1 + 3 * n_walls + n_walls ** 2)
@@ -324,7 +324,7 @@ def test_static_chair_return_is_removed_by_the_mti(sit):
     # Unit-gain antennas: the ~12 dB above is the RCS contrast (with the default horns, which weight chair
     # and body by their own directions, the zero-velocity bin without MTI measured 0.88 instead).
     radar = Radar.monostatic((-3.0, 0.0, 1.1), antenna=Isotropic())
-    ps = facet_paths(sit, radar, scene=scene, lod="2k")["radar1"]
+    ps = facet_paths(sit, radar, scene=scene, lod="2k", clutter=False)["radar1"]
     back = scene.furniture[0].to_world([-0.19, 0.0, 0.75])
     r = float(np.linalg.norm(back - radar.links[0].tx_pos))
     a = radar.waveform.wavelength / ((4 * np.pi) ** 1.5 * r ** 2)  # sigma = 1 m^2, |a|^2 = Pr/Pt

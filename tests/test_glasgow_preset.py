@@ -40,9 +40,14 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
         (link,) = radar.links
         # the dataset's people are 1-4 m from the radar: the activity spot (origin) is
         assert 1.0 <= np.hypot(*link.tx_pos[:2]) <= 4.0 and it.angle_deg == 0.0
-        # horizontal boresight toward the person's vertical axis
-        np.testing.assert_allclose(radar.antenna.boresight_unit(link.tx_pos), -link.tx_pos * [1, 1, 0]
-                                   / np.hypot(*link.tx_pos[:2]), atol=1e-12)
+        # boresight toward the person's vertical axis, tilted by the drawn downtilt (-5..15 deg), and a drawn
+        # elevation beamwidth (18-45 deg): neither is published for the kit
+        b = radar.antenna.boresight_unit(link.tx_pos)
+        np.testing.assert_allclose(b[:2] / np.hypot(*b[:2]), -link.tx_pos[:2] / np.hypot(*link.tx_pos[:2]),
+                                   atol=1e-12)
+        tilt = radar.antenna.downtilt_deg
+        assert -5.0 <= tilt <= 15.0 and np.degrees(np.arcsin(b[2])) == pytest.approx(-tilt, abs=1e-9)
+        assert 18.0 <= radar.antenna.hpbw_el_deg <= 45.0
         assert it.motion["clip_s"] == (10.0 if it.activity == "walk" else 5.0)
     # real motion capture where it exists: walks and the two parts of 75_17
     files = {(it.activity, it.source) for it in items if it.motion["kind"] == "file"}

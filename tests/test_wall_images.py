@@ -58,7 +58,7 @@ def test_image_extra_delay_equals_mirror_geometry():
     tx = np.array([3.0, 0.0, 1.1])
     radar = RadarConfig(links=[Link(name="r", tx=tuple(tx))])
     scene = get_scene("room", LOD, m.rig.height, radar.waveform.carrier_hz)
-    ps = facet_paths(m, radar, scene=scene, lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None)["r"]
+    ps = facet_paths(m, radar, scene=scene, lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None, clutter=False)["r"]
     n_faces = len(scene.body_faces)
     av = load_avatar(LOD)
     verts = skin_vertices(av, m, [0])[0]
@@ -89,7 +89,7 @@ def test_monostatic_merge_equals_sum_of_both_images_and_walls_switch():
     scene = get_scene("room", LOD, m.rig.height, radar.waveform.carrier_hz)
     n_faces = len(scene.body_faces)
     out = facet_paths(m, radar, scene=scene, lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None,
-                      double_bounce="pairs")
+                      double_bounce="pairs", clutter=False)
     mono, bi = out["mono"], out["bi"]
     g_bi = dict(zip(bi.ids, bi.gains[0]))
     floor = 1 + 2 * [w.name for w in scene.walls].index("floor")
@@ -114,7 +114,7 @@ def test_monostatic_merge_equals_sum_of_both_images_and_walls_switch():
         both = g_bi.get(f + n_faces * double_kind(w1, w2, n_w), 0) + g_bi.get(f + n_faces * double_kind(w2, w1, n_w), 0)
         assert mono.gains[0, col] == pytest.approx(both, rel=1e-5)
     no_walls = facet_paths(m, radar, scene=scene, lod=LOD, walls=False, trace_fps=None,
-                           min_relative_gain_db=None)["mono"]
+                           min_relative_gain_db=None, clutter=False)["mono"]
     assert np.all(no_walls.ids < n_faces)
     assert set(no_walls.ids) == set(mono.ids[mono.ids < n_faces])
 
@@ -128,8 +128,8 @@ def test_coarse_image_lod_keeps_image_power_and_direct_paths():
     # Diffuse only: the PO term of a facet is not area-weighted (a flat facet's specular lobe grows as A^2),
     # so only the coherent sum of PO facets is mesh-independent (next test).
     opts = dict(scene=scene, lod="5k", walls=True, trace_fps=None, min_relative_gain_db=None, po=False)
-    fine = facet_paths(m, radar, image_lod=None, **opts)["r"]
-    coarse = facet_paths(m, radar, image_lod="2k", **opts)["r"]
+    fine = facet_paths(m, radar, image_lod=None, **opts, clutter=False)["r"]
+    coarse = facet_paths(m, radar, image_lod="2k", **opts, clutter=False)["r"]
     # Direct paths are untouched (same ids, gains and delays).
     d_f, d_c = fine.ids < n_faces, coarse.ids < n_faces
     assert np.array_equal(fine.ids[d_f], coarse.ids[d_c])
@@ -170,8 +170,8 @@ def test_coarse_image_lod_keeps_coherent_image_power_with_defaults():
     scene = get_scene("room", "5k", m.rig.height, f0)
     n_faces = len(scene.body_faces)
     opts = dict(scene=scene, lod="5k", walls=True, min_relative_gain_db=None)
-    fine = facet_paths(m, radar, image_lod=None, **opts)
-    coarse = facet_paths(m, radar, image_lod="2k", **opts)
+    fine = facet_paths(m, radar, image_lod=None, **opts, clutter=False)
+    coarse = facet_paths(m, radar, image_lod="2k", **opts, clutter=False)
     for name in fine:
         power = []
         for ps in (fine[name], coarse[name]):
@@ -183,7 +183,7 @@ def test_coarse_image_lod_keeps_coherent_image_power_with_defaults():
 
 def _floor_double(radar, m, scene):
     return facet_paths(m, radar, scene=scene, lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None,
-                       double_bounce="floor")
+                       double_bounce="floor", clutter=False)
 
 
 @pytest.mark.parametrize("rx", [None, (2.2, 1.5, 1.4)])
@@ -212,7 +212,7 @@ def test_floor_double_bounce_is_the_image_geometry_times_gamma_squared(rx):
     # incidence, so it is pure TM: co-polar coefficient -r_tm, conjugated (synthesiser convention), at the
     # incidence cosines (z_antenna + z_c) / |c - antenna'|.
     free = facet_paths(m, RadarConfig(links=[Link(name="r", tx=tuple(tx_i), rx=tuple(rx_i))], antenna=Isotropic()),
-                       scene="free_space", lod=LOD, walls=False, trace_fps=None, min_relative_gain_db=None)["r"]
+                       scene="free_space", lod=LOD, walls=False, trace_fps=None, min_relative_gain_db=None, clutter=False)["r"]
     g_free = dict(zip(free.ids, free.gains[0]))
     both = np.array([g_free.get(i, 0) != 0 for i in f])
     assert both.mean() > 0.9  # the free-space run misses only facets whose floor leg the body blocks
@@ -231,8 +231,8 @@ def test_double_bounce_switch_removes_exactly_its_paths():
     scene = get_scene("room", LOD, m.rig.height, radar.waveform.carrier_hz)
     n_faces, n_w = len(scene.body_faces), len(scene.walls)
     opts = dict(scene=scene, lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None)
-    on = facet_paths(m, radar, double_bounce=True, **opts)
-    off = facet_paths(m, radar, double_bounce=False, **opts)
+    on = facet_paths(m, radar, double_bounce=True, **opts, clutter=False)
+    off = facet_paths(m, radar, double_bounce=False, **opts, clutter=False)
     for name in on:
         kinds = on[name].ids // n_faces
         double = kinds > 2 * n_w
