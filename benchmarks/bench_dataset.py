@@ -36,7 +36,7 @@ def bench(workers: int, per_activity: int, backend: str | None) -> dict:
         s = run_plan(plan, Path(d) / "ds", workers=workers, progress=False,
                      item_filter=subset_filter(plan, per_activity))
         wall = time.perf_counter() - t0
-        from processing.io.dataset_store import DatasetReader
+        from processing.io.dataset_reader import DatasetReader
 
         entries = DatasetReader(Path(d) / "ds").entries
         secs = [e["seconds"] for e in entries]

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from processing.classifier.preprocess import PreprocessConfig, preprocess  # noqa: E402
-from processing.io.dataset_store import DatasetReader  # noqa: E402
+from processing.io.dataset_reader import DatasetReader  # noqa: E402
 from processing.realdata.real_images import load_real_images, parse_people  # noqa: E402
 
 ACTIVITIES = ("walk", "sit", "stand", "pick", "fall")

@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from processing.io.dataset_store import DatasetReader  # noqa: E402
+from processing.io.dataset_reader import DatasetReader  # noqa: E402
 from processing.realdata.spectrogram_image import read_glasgow_image  # noqa: E402
 
 CLASSES = [("walk", 1), ("sit", 2), ("stand", 3), ("pick", 4), ("fall", 6)]  # Glasgow activity digits

@@ -19,7 +19,7 @@ import argparse
 
 import numpy as np
 
-from processing.io.dataset_store import DatasetReader
+from processing.io.dataset_reader import DatasetReader
 from processing.realdata.real_images import load_real_images, parse_people
 
 ACTIVITIES = ("walk", "sit", "stand", "pick", "fall")

@@ -14,7 +14,8 @@ from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, Tr
                                    save_checkpoint, split_indices, train)
 from processing.classifier.metrics import plot_confusion, write_confusion_csv
 from processing.classifier.training import dataset_arrays
-from processing.io.dataset_store import ACTIVITIES, DatasetReader
+from processing.io.dataset_store import ACTIVITIES
+from processing.io.dataset_reader import DatasetReader
 from rtchannel.cli import main
 
 PLAN = """

@@ -11,7 +11,9 @@ import h5py
 import pytest
 import yaml
 
-from processing.io.dataset_store import DatasetReader, read_jsonl
+from processing.io.dataset_store import read_jsonl
+
+from processing.io.dataset_reader import DatasetReader
 from rtchannel.cli import main
 from rtchannel.dataset.plan import expand, load_plan
 from rtchannel.dataset.runner import PlanMismatchError, run_plan

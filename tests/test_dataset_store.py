@@ -6,8 +6,9 @@ import h5py
 import numpy as np
 import pytest
 
-from processing.io.dataset_store import (ACTIVITIES, DatasetReader, checksum, read_jsonl, remove_orphans,
-                                      scan_shards, write_index, write_shard)
+from processing.io.dataset_reader import DatasetReader
+from processing.io.dataset_store import (ACTIVITIES, checksum, read_jsonl, remove_orphans, scan_shards, write_index,
+                                         write_shard)
 from processing.errors import DatasetFormatError
 from processing.dsp.signatures import DSPConfig, signatures
 from processing.synthesis.augment import add_clutter, add_noise, signal_power, static_clutter

@@ -366,7 +366,7 @@ json_value = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(), st.
                                             st.sampled_from(['{"item_id": "x"}', '{"item_id": 3}', "{", "[]", ""])),
        field=st.sampled_from(["item_id", "shard", "links", "label", "sha256"]), value=json_value)
 def test_dataset_index_fuzz(small_dataset, tmp_path_factory, pos, line, field, value):
-    from processing.io.dataset_store import DatasetReader
+    from processing.io.dataset_reader import DatasetReader
 
     root = tmp_path_factory.mktemp("copy") / "ds"
     shutil.copytree(small_dataset, root)

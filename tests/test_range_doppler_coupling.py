@@ -8,7 +8,7 @@ from processing.dsp.config import DSPConfig
 from processing.dsp.signatures import signatures
 from processing.pathset import PathSet
 from processing.radar.waveform import C0, Waveform
-from processing.synthesis.exact import coupling_s, iter_synthesis, synthesise
+from processing.synthesis.exact import coupling_s, synthesise
 from processing.synthesis.projection import synthesise_projection
 
 GLASGOW_WF = Waveform(carrier_hz=5.8e9, bandwidth_hz=400e6, pri_s=1e-3, samples_per_chirp=128, max_range_m=24.0)
@@ -72,7 +72,7 @@ def test_fast_target_p_vt_matches_a_brute_force_synthesis(method, copies):
     got = signatures(iq, wf, dsp, t0=t[0])
     l1 = np.abs(got.p_vt - ref.p_vt).sum(axis=0).mean()
     assert l1 < 0.01, l1
-    proj_t, proj = synthesise_projection(paths, wf, dsp, method=method)
+    _, proj = synthesise_projection(paths, wf, dsp, method=method)
     from processing.dsp.signatures import signatures_from_projection
 
     via_projection = signatures_from_projection(proj, dsp)

@@ -52,7 +52,7 @@ def test_dataset_items_of_one_motion_share_the_backend_and_equal_single_runs(tmp
     through `run_shared`, and every stored signature equals the item run alone (`run_item`)."""
     import yaml
 
-    from processing.io.dataset_store import DatasetReader
+    from processing.io.dataset_reader import DatasetReader
     from rtchannel.dataset.items import run_item
     from rtchannel.dataset.plan import expand, load_plan
     from rtchannel.dataset.runner import make_batches, run_plan

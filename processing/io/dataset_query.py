@@ -79,7 +79,7 @@ def select(reader, conds: list[Condition]) -> list[int]:
 
 def open_spec(spec: str):
     """(DatasetReader, selected indices) of a dataset spec; QueryError if it is missing or selects nothing."""
-    from processing.io.dataset_store import DatasetReader
+    from processing.io.dataset_reader import DatasetReader
 
     path, conds = parse_spec(spec)
     try:

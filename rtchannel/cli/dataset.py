@@ -85,7 +85,8 @@ def _info(root) -> int:
     """`dataset --info DIR`: counts and failures, and what the index cannot say: its unreadable lines and
     the items the shards hold that it does not list (a damaged index is reported, not silently empty)."""
     from processing.errors import DatasetFormatError
-    from processing.io.dataset_store import DatasetReader, index_health
+    from processing.io.dataset_store import index_health
+    from processing.io.dataset_reader import DatasetReader
     from rtchannel.cli.common import UserError
 
     if not root.is_dir():
