@@ -389,3 +389,34 @@ def test_c3d_imports_under_an_address_space_limit(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-1500:]
     assert r.stdout.strip() == "['A', 'B'] 100.0 mm (50, 3)"
+
+
+PLUG_IN_GAIT = registered("mocap/msm2017/pick/*.c3d")
+
+
+@pytest.mark.parametrize("take", PLUG_IN_GAIT, ids=lambda p: Path(p).stem)
+def test_plug_in_gait_stoop_lifts_import_as_picks(take, shared_data):
+    """Vicon Plug-in Gait (no MT5 markers, tibia instead of shin markers): a person 1.4-2.0 m tall standing on
+    the floor, whose head drops by more than 0.4 m and comes back (the take's README: 1.66 -> 0.92 -> 1.68 m)."""
+    m = load_motion(shared_data(take), activity="pick")
+    assert m.params["marker_set"] == "plug-in-gait"
+    assert 1.4 <= m.rig.height <= 2.0
+    av = load_avatar("2k")
+    v0 = skin_vertices(av, m, [0])[0]
+    assert abs(v0[:, 2].min()) < 0.03  # soles on the floor at the start
+    head = m.positions[:, m.rig.index("Head"), 2]
+    assert head[0] - head.min() >= 0.4 and abs(head[-1] - head[0]) < 0.1
+
+
+def test_unknown_marker_set_names_the_closest_set_and_its_missing_markers(tmp_path):
+    import ezc3d
+
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [100.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = ["LASI", "RASI", "LKNE"]
+    c.add_parameter("POINT", "UNITS", ["mm"])
+    c["data"]["points"] = np.ones((4, 3, 20))
+    p = tmp_path / "few.c3d"
+    c.write(str(p))
+    with pytest.raises(MotionImportError, match=r"few\.c3d.*marker set lacks .*closest known set"):
+        load_motion(p)

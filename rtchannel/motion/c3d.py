@@ -36,6 +36,16 @@ REQUIRED = ("LFWT", "RFWT", "LBWT", "RBWT", "LTHI", "LKNE", "LSHN", "LANK", "LHE
             "RTHI", "RKNE", "RSHN", "RANK", "RHEE", "RMT5", "RTOE", "CLAV", "STRN", "C7", "T10",
             "LFHD", "RFHD", "LBHD", "RBHD", "LSHO", "LUPA", "LELB", "LWRA", "LWRB", "LFIN",
             "RSHO", "RUPA", "RELB", "RWRA", "RWRB", "RFIN")
+# Marker sets the importer knows, tried in order (labels after ALIASES; extend the table for another set):
+# what each must have. The joint centres use the pelvis (ASIS/PSIS), knee, ankle, heel, toe, shoulder,
+# elbow, wrist, head and trunk markers; the shin/tibia and upper-arm markers only steady the gap filling.
+#   cmu41: the CMU database's 41 Vicon markers (MT5 on the fifth metatarsal sets each foot's lateral axis);
+#   plug-in-gait: Vicon's Plug-in Gait (LTIB/RTIB instead of LSHN/RSHN, no MT5: the foot's lateral axis is
+#   then the pelvis's, feet pointing where the pelvis does).
+MARKER_SETS: dict[str, tuple[str, ...]] = {
+    "cmu41": REQUIRED,
+    "plug-in-gait": tuple(n for n in REQUIRED if n[1:] not in ("SHN", "MT5")) + ("LTIB", "RTIB"),
+}
 
 
 def _header_frames(path: Path) -> int | None:
@@ -246,7 +256,8 @@ def joint_centres(m: dict[str, np.ndarray]) -> tuple[dict, dict]:
     head = _frame_xy(mid("LFHD", "RFHD") - mid("LBHD", "RBHD"), mid("LFHD", "LBHD") - mid("RFHD", "RBHD"))
     frames = {"pelvis": pelvis, "thorax": thorax, "head": head}
     for s, sign in (("L", 1.0), ("R", -1.0)):
-        frames[f"{s}foot"] = _frame_xy(m[f"{s}TOE"] - m[f"{s}HEE"], sign * (m[f"{s}MT5"] - m[f"{s}TOE"]))
+        lateral_hint = sign * (m[f"{s}MT5"] - m[f"{s}TOE"]) if f"{s}MT5" in m else pelvis[..., 1]
+        frames[f"{s}foot"] = _frame_xy(m[f"{s}TOE"] - m[f"{s}HEE"], lateral_hint)
     for k, frac in (("lumbar1", 1 / 3), ("lumbar2", 2 / 3)):
         rel = Rotation.from_matrix(np.einsum("fba,fbc->fac", pelvis, thorax))
         frames[k] = pelvis @ Rotation.from_rotvec(rel.as_rotvec() * frac).as_matrix()
@@ -266,11 +277,15 @@ def read_c3d(path, *, units=None, up=None, max_gap_s: float = MAX_GAP_S, on_long
     """
     path = Path(path)
     markers, fps, file_units = read_markers(path)
-    missing = [n for n in REQUIRED if n not in markers]
-    if missing:
-        raise MotionImportError(path, f"marker set lacks {', '.join(missing)} (labels found: "
+    missing = {k: [n for n in need if n not in markers] for k, need in MARKER_SETS.items()}
+    marker_set = next((k for k, miss in missing.items() if not miss), None)
+    if marker_set is None:
+        closest = min(missing, key=lambda k: len(missing[k]))
+        raise MotionImportError(path, f"marker set lacks {', '.join(missing[closest])} (closest known set: "
+                                f"{closest}; known: {', '.join(MARKER_SETS)}; labels found: "
                                 f"{', '.join(sorted(markers))})")
-    filled = fill_gaps(markers, fps, REQUIRED, max_gap_s, on_long_gap, path)
+    required = MARKER_SETS[marker_set]
+    filled = fill_gaps(markers, fps, required, max_gap_s, on_long_gap, path)
     scale = parse_units(units) if units is not None else None
     unit_name = units if isinstance(units, str) else None
     if scale is None and file_units and file_units.strip().lower() in ("mm", "cm", "m"):
@@ -288,7 +303,7 @@ def read_c3d(path, *, units=None, up=None, max_gap_s: float = MAX_GAP_S, on_long
                                 f"POINT:UNITS {file_units.strip()!r} (expected {LEG_RANGE_M[0]}..{LEG_RANGE_M[1]} m): "
                                 "wrong units in the file? pass units=")
     c = up_rotation(up_axis) * scale
-    needed = {k: markers[k] @ c.T for k in REQUIRED}
+    needed = {k: markers[k] @ c.T for k in required}
     check_extent(path, needed)
     with np.errstate(invalid="ignore", divide="ignore"):
         pts, frames = joint_centres(needed)
@@ -299,7 +314,7 @@ def read_c3d(path, *, units=None, up=None, max_gap_s: float = MAX_GAP_S, on_long
                                     frame=int(np.argmax(bad)))
     info = {"format": "c3d", "rig": "c3d", "units": unit_name or f"{scale} m/unit", "metres_per_unit": scale,
             "up": up_axis, "source_frames": int(len(next(iter(markers.values())))),
-            "markers": len(markers), "filled_gaps": filled, "max_gap_s": max_gap_s}
+            "markers": len(markers), "marker_set": marker_set, "filled_gaps": filled, "max_gap_s": max_gap_s}
     # Head markers sit on a headband whose tilt varies between subjects (the raw frame looks ~15 deg up),
     # so the head's neutral is its mean orientation relative to the neck over the take instead.
     neutral = {k: np.eye(3) for k in frames if k != "head"}
