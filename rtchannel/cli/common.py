@@ -70,7 +70,9 @@ def validation_line(err: ValidationError, what: str) -> str:
 def add_motion_args(p) -> None:
     """Arguments choosing a procedural activity or a motion-capture file (read by `build_motion`)."""
     p.add_argument("--activity", default="walk", help="fall, walk, stand, sit or pick (default walk)")
-    p.add_argument("--motion-file", type=Path, help="BVH or C3D motion capture instead of a procedural motion")
+    p.add_argument("--motion-file", type=Path, help="motion capture instead of a procedural motion: BVH (CMU, iClone "
+                   "rigs), C3D (CMU 41 markers, Vicon plug-in-gait) or AMC (with --skeleton)")
+    p.add_argument("--skeleton", type=Path, help="--motion-file take.amc: its ASF skeleton file")
     p.add_argument("--height", type=finite_float, default=1.75, help="body height [m] (default 1.75)")
     p.add_argument("--speed", type=finite_float, help="walking speed [m/s] (procedural walk only)")
     p.add_argument("--duration", type=finite_float, help="activity duration [s] (procedural)")
@@ -236,7 +238,11 @@ def build_motion(args):
     if args.motion_file is not None:
         if not args.motion_file.is_file():
             raise UserError(f"motion file not found: {args.motion_file}")
-        motion = Motion.from_file(args.motion_file, height=args.height, activity=args.activity)
+        skeleton = getattr(args, "skeleton", None)
+        if skeleton is not None and not skeleton.is_file():
+            raise UserError(f"skeleton file not found: {skeleton}")
+        extra = {} if skeleton is None else {"skeleton": skeleton}
+        motion = Motion.from_file(args.motion_file, height=args.height, activity=args.activity, **extra)
         motion = placed_take(motion, start=args.start, heading_deg=heading, trim=trim)
         return motion if args.fps == motion.fps else motion.resampled(args.fps)
     if trim is not None:

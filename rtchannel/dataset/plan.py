@@ -28,7 +28,7 @@ from rtchannel.dataset.plan_schema import (  # noqa: F401 - the schema, re-expor
 from rtchannel.dataset.plan_yaml import check_backend_options, count_items, read_plan_yaml
 from processing.errors import InputError
 
-MOTION_SUFFIXES = (".bvh", ".c3d")
+MOTION_SUFFIXES = (".bvh", ".c3d", ".amc")
 PRESETS_DIR = Path(__file__).with_name("presets")
 
 
@@ -154,6 +154,28 @@ def _registry_files(src: Source, fetch: bool) -> list[Path]:
     return [data_registry.fetch(p) for p in chosen]
 
 
+def skeleton_for(motion_file: Path, spec: str) -> Path:
+    """The ASF skeleton of an AMC `motion_file`: `spec` names the file, or a folder (``data:`` prefix or local)
+    whose ASF with the longest name that starts the AMC's name is taken (HDM05: HDM_bd.asf for
+    HDM_bd_depositFloorR_001_120.amc), so one source can hold several actors' takes."""
+    if spec.startswith(DATA_PREFIX):
+        from rtchannel import data_registry
+
+        rels = [e.path for e in data_registry.entries(spec[len(DATA_PREFIX):]) if e.path.lower().endswith(".asf")]
+        cands = {Path(r).stem: r for r in rels}
+        fetch = data_registry.fetch
+    else:
+        p = Path(spec)
+        if p.is_file():
+            return p
+        cands = {q.stem: q for q in p.glob("*.asf")} if p.is_dir() else {}
+        fetch = Path
+    best = max((k for k in cands if motion_file.stem.lower().startswith(k.lower())), key=len, default=None)
+    if best is None:
+        raise ConfigError(f"motion file {motion_file.name}: no ASF skeleton in {spec} whose name starts its name")
+    return fetch(cands[best])
+
+
 def _labelled_files(src: Source) -> list[tuple[Path, str]]:
     """(local path, label) of each file of a `files` source; the label is the path below the folder or
     registry prefix the source names (the file name for a single file)."""
@@ -192,7 +214,10 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
                 if act not in ACTIVITIES:
                     raise InputError(f"motion file {f}: folder name {act!r} is not an activity "
                                      f"({', '.join(ACTIVITIES)})")
-                base = {"kind": "file", "activity": act, "path": str(f), "options": dict(src.options)}
+                options = dict(src.options)
+                if "skeleton" in options:
+                    options["skeleton"] = str(skeleton_for(f, options["skeleton"]))
+                base = {"kind": "file", "activity": act, "path": str(f), "options": options}
                 if src.trim is not None:
                     base["trim"] = list(src.trim)
                 out.append((f"{act}-{si:02d}-{v:04d}", act, f"file:{rel}", rel, base))

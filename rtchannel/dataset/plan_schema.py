@@ -81,7 +81,8 @@ class Source(_Model):
                 raise InputError("files: 'activity' is required (an activity or 'from_folder')")
             if self.activity != "from_folder" and self.activity not in ACTIVITIES:
                 raise InputError(f"activity must be one of {', '.join(ACTIVITIES)} or 'from_folder'")
-            bad = sorted(set(self.options) - {"units", "up", "align", "floor", "max_gap_s", "on_long_gap"})
+            bad = sorted(set(self.options) - {"units", "up", "align", "floor", "max_gap_s", "on_long_gap",
+                                              "skeleton"})
             if bad:
                 raise InputError(f"options: {bad[0]!r} is not a load_motion option")
         return self

@@ -12,17 +12,19 @@ from rtchannel.motion.retarget import drop_leading_discontinuities, retarget
 from rtchannel.motion.source import check_fps, check_resampled_frames, parse_units, up_rotation
 from rtchannel.motion.pose import Motion
 
-FORMATS = (".bvh", ".c3d")
+FORMATS = (".bvh", ".c3d", ".amc")
 MAX_GAP_LIMIT_S = 10.0  # filling a longer marker gap by interpolation invents the motion
 
 
 def load_motion(path, *, fps: float | None = None, units=None, up: str | None = None,
                 height: float | None = None, activity: str = "", align: bool = True,
-                floor: bool = True, max_gap_s: float = 0.2, on_long_gap: str = "error") -> Motion:
+                floor: bool = True, max_gap_s: float = 0.2, on_long_gap: str = "error",
+                skeleton=None) -> Motion:
     """Import a BVH or C3D file and retarget it onto the avatar rig.
 
     Args:
-        path: a ``.bvh`` (CMU/cgspeed 31-joint or iClone CC_Base rig) or ``.c3d`` (41-marker set) file.
+        path: a ``.bvh`` (CMU/cgspeed 31-joint or iClone CC_Base rig), ``.c3d`` (CMU 41-marker or Vicon
+            plug-in-gait set) or ``.amc`` file (with its ASF `skeleton`).
         fps: resample to this frame rate [Hz] (default: the file's).
         units: file length unit ("m", "cm", "mm", "in", "cmu") or metres per unit; guessed if None.
         up: the file's up axis ("y", "z", "-y", ...); guessed if None.
@@ -32,6 +34,7 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
         floor: level the floor, put planted feet on z = 0 and correct floating/sinking stance feet
             frame by frame; False keeps the file's vertical placement.
         max_gap_s, on_long_gap: C3D marker-gap policy (see `rtchannel.motion.c3d.fill_gaps`).
+        skeleton: the ASF skeleton file of an ``.amc`` motion (required for AMC, refused otherwise).
 
     Returns:
         The retargeted `Motion` (metres, z up, soles on the floor); ``params`` records the file, the
@@ -58,10 +61,17 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
                                 f"{' or '.join(FORMATS)}")
     if not p.is_file():
         raise MotionImportError(p, "no such file")
+    if (ext == ".amc") != (skeleton is not None):
+        raise ConfigError(f"{p.name}: an .amc motion needs its ASF skeleton (skeleton=, --skeleton) and only an "
+                          ".amc motion takes one")
     if ext == ".bvh":
         from rtchannel.motion.bvh import read_bvh
 
         src = read_bvh(p, units=units, up=up)
+    elif ext == ".amc":
+        from rtchannel.motion.asf_amc import read_asf_amc
+
+        src = read_asf_amc(p, Path(skeleton), units=units, up=up)
     else:
         from rtchannel.motion.c3d import read_c3d
 
