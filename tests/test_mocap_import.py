@@ -420,3 +420,29 @@ def test_unknown_marker_set_names_the_closest_set_and_its_missing_markers(tmp_pa
     c.write(str(p))
     with pytest.raises(MotionImportError, match=r"few\.c3d.*marker set lacks .*closest known set"):
         load_motion(p)
+
+
+DAZ_WALKS = registered("mocap/cmu/walk_daz/*.bvh")
+
+
+@pytest.mark.parametrize("take", DAZ_WALKS, ids=lambda p: Path(p).stem)
+def test_daz_rig_walks_of_three_more_people_import(take, shared_data):
+    """cgspeed's Daz-friendly CMU conversion (hip, abdomen, lThigh, ...): straight walks of 3.7-4.1 m at
+    0.9-1.6 m/s (the takes' README), upright, soles on the floor."""
+    m = load_motion(shared_data(take), activity="walk")
+    assert m.params["rig"] == "daz" and 1.4 <= m.rig.height <= 2.0
+    hips = m.positions[:, 0]
+    travel = np.linalg.norm(hips[-1, :2] - hips[0, :2])
+    assert 3.4 <= travel <= 4.3 and 0.8 <= travel / m.duration <= 1.7
+    v0 = skin_vertices(load_avatar("2k"), m, [0])[0]
+    assert abs(v0[:, 2].min()) < 0.03 and v0[:, 2].max() > 1.3
+
+
+def test_unknown_bvh_rig_names_the_joints_it_lacks(tmp_path):
+    bvh = tmp_path / "odd.bvh"
+    bvh.write_text("HIERARCHY\nROOT pelvis\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition Zposition Zrotation "
+                   "Xrotation Yrotation\n  JOINT lThigh\n  {\n    OFFSET 10 -5 0\n    CHANNELS 3 Zrotation Xrotation "
+                   "Yrotation\n    End Site\n    {\n      OFFSET 0 -40 0\n    }\n  }\n}\nMOTION\nFrames: 2\n"
+                   "Frame Time: 0.0333333\n0 90 0 0 0 0 0 0 0\n0 90 0 0 0 0 0 0 0\n")
+    with pytest.raises(MotionImportError, match=r"odd\.bvh.*closest known rig 'daz' lacks joints .*abdomen"):
+        load_motion(bvh)

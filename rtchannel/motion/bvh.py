@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from processing.atomic import write_text_atomic
 from rtchannel.motion.errors import MotionImportError
-from rtchannel.motion.rigs import cc_neutral
+from rtchannel.motion.rigs import JOINT_MAPS, cc_neutral
 from rtchannel.motion.source import (FILE_FPS_RANGE, MAX_ANGLE_DEG, MAX_DURATION_S, MAX_SOURCE_FRAMES,
                                      SourceMotion, check_extent, guess_units, guess_up, parse_units, up_rotation)
 from rtchannel.motion.pose import Motion
@@ -284,12 +284,22 @@ def _rig_kind(names: list[str]) -> str:
         return "cc"
     if {"Hips", "LeftUpLeg", "RightUpLeg", "LeftLeg", "LeftFoot"} <= set(names):
         return "cmu"
-    raise InputError("unknown BVH skeleton: expected the CMU/cgspeed rig (Hips, LeftUpLeg, ...) or the "
-                     "iClone CC_Base_* rig")
+    if {"hip", "abdomen", "chest", "lThigh", "rThigh", "lShin", "lFoot", "head"} <= set(names):
+        return "daz"
+    best = max(RIG_JOINTS, key=lambda k: len(RIG_JOINTS[k] & set(names)))
+    raise InputError(f"unknown BVH skeleton: closest known rig {best!r} lacks joints "
+                     f"{', '.join(sorted(RIG_JOINTS[best] - set(names))[:8])} (known rigs: cgspeed CMU, iClone "
+                     f"CC_Base, Daz/Genesis)")
+
+
+# the joints that identify each rig (named in the error for a skeleton that matches none)
+RIG_JOINTS = {"cmu": {"Hips", "LeftUpLeg", "RightUpLeg", "LeftLeg", "LeftFoot"},
+              "cc": {"CC_Base_Hip", "CC_Base_L_Thigh", "CC_Base_L_Calf", "CC_Base_L_Foot"},
+              "daz": {"hip", "abdomen", "chest", "lThigh", "rThigh", "lShin", "lFoot", "head"}}
 
 
 _LEG = {"cc": ("CC_Base_L_Thigh", "CC_Base_L_Calf", "CC_Base_L_Foot", "CC_Base_Head"),
-        "cmu": ("LeftUpLeg", "LeftLeg", "LeftFoot", "Head")}
+        "cmu": ("LeftUpLeg", "LeftLeg", "LeftFoot", "Head"), "daz": ("lThigh", "lShin", "lFoot", "head")}
 
 
 def read_bvh(path, *, units=None, up=None) -> SourceMotion:
@@ -328,17 +338,18 @@ def read_bvh(path, *, units=None, up=None) -> SourceMotion:
         points[names[i] + END] = (pos[:, i] + np.einsum("fab,b->fa", rot[:, i], off)) @ c.T
     check_extent(path, points, raw["line_of_frame"])
     orientations = {n: np.einsum("ab,fbc->fac", c_rot, rot[:, i]) for i, n in enumerate(names)}
-    neutral = cc_neutral() if kind == "cc" else _zero_pose_neutral(raw, c_rot, names)
+    neutral = cc_neutral() if kind == "cc" else _zero_pose_neutral(raw, c_rot, names, JOINT_MAPS[kind]["hips"])
     info = {"format": "bvh", "rig": kind, "units": unit_name or f"{scale} m/unit", "metres_per_unit": scale,
             "up": up_axis, "source_frames": len(raw["data"]), "source_joints": len(names)}
     return SourceMotion(str(path), 1.0 / raw["frame_time"], points, orientations, neutral, kind, info)
 
 
-def _zero_pose_neutral(raw: dict, c_rot: np.ndarray, names: list[str]) -> dict[str, np.ndarray]:
-    """Global orientations of the all-zero-channel pose (the CMU/cgspeed T-pose), turned to face +x."""
+def _zero_pose_neutral(raw: dict, c_rot: np.ndarray, names: list[str], hips: tuple[str, str]) -> dict[str, np.ndarray]:
+    """Global orientations of the all-zero-channel pose (the CMU/cgspeed or Daz T-pose), turned to face +x;
+    `hips` names the (left, right) hip joints."""
     rot, pos = forward_kinematics_bvh({**raw, "data": np.zeros((1, raw["data"].shape[1]))})
     idx = {n: i for i, n in enumerate(names)}
-    left = c_rot @ (pos[0, idx["LeftUpLeg"]] - pos[0, idx["RightUpLeg"]])
+    left = c_rot @ (pos[0, idx[hips[0]]] - pos[0, idx[hips[1]]])
     yaw = np.arctan2(-left[0], left[1])
     turn = Rotation.from_euler("z", -yaw).as_matrix() @ c_rot
     return {n: turn @ rot[0, i] for i, n in enumerate(names)}

@@ -65,6 +65,31 @@ JOINT_MAPS: dict[str, dict] = {
             "Head": ("Head", "Head/End", ("orient", "Head")),
         },
     },
+    # cgspeed's "Daz-friendly" CMU conversion (Daz/Genesis names): hip, abdomen, chest, neck, head; lCollar,
+    # lShldr, lForeArm, lHand, fingers; lButtock, lThigh, lShin, lFoot (no toe joint: the toes follow the foot)
+    "daz": {
+        "hips": ("lThigh", "rThigh"),
+        "leg": ("lThigh", "lShin", "lFoot"),
+        "bones": {
+            "Hips": ("rThigh", "lThigh", ("orient", "hip")),
+            **{f"{S}{a}": (f"{s}{b}", f"{s}{c}", ("orient", f"{s}{b}"))
+               for S, s in (("Left", "l"), ("Right", "r"))
+               for a, b, c in (("UpLeg", "Thigh", "Shin"), ("Leg", "Shin", "Foot"), ("Shoulder", "Collar", "Shldr"),
+                               ("Arm", "Shldr", "ForeArm"), ("ForeArm", "ForeArm", "Hand"), ("Hand", "Hand", "Mid1"),
+                               ("FingerBase", "Mid1", "Mid2"))},
+            **{f"{S}Foot": (f"{s}Foot", f"{s}Foot/End", ("orient", f"{s}Foot")) for S, s in (("Left", "l"), ("Right", "r"))},
+            **{f"{S}HandFinger1": (f"{s}Mid2", f"{s}Mid2/End", ("orient", f"{s}Mid2"))
+               for S, s in (("Left", "l"), ("Right", "r"))},
+            **{f"{s.upper()}Thumb": (f"{s}Thumb1", f"{s}Thumb2", ("orient", f"{s}Thumb1")) for s in ("l", "r")},
+            **{f"{s.upper()}HipJoint": (f"{s}Buttock", f"{s}Thigh", ("orient", f"{s}Buttock")) for s in ("l", "r")},
+            "LowerBack": ("abdomen", "chest", ("orient", "abdomen")),
+            "Spine": ("chest", "neck", ("orient", "chest")),
+            "Spine1": ("chest", "neck", ("orient", "chest")),
+            "Neck": ("neck", "head", ("orient", "neck")),
+            "Neck1": ("neck", "head", ("orient", "neck")),
+            "Head": (None, None, ("only", "head")),
+        },
+    },
     "c3d": {
         "hips": ("LHJC", "RHJC"),
         "leg": ("LHJC", "LKJC", "LAJC"),
