@@ -121,3 +121,31 @@ def test_plan_sources_take_amc_folders_with_their_actors_skeletons(tmp_path, sha
     items = expand(load_plan(plan))
     skel = {Path(it.motion["path"]).name.split("_")[1]: Path(it.motion["options"]["skeleton"]).name for it in items}
     assert skel == {"bd": "HDM_bd.asf", "bk": "HDM_bk.asf", "dg": "HDM_dg.asf", "mm": "HDM_mm.asf"}
+
+
+def test_opencap_sit_to_stand_series_imports_with_its_five_cycles(shared_data):
+    """OpenCap body kinematics (OpenSim bodies, 100 Hz): a 1.4-2.0 m person whose hips rise from the seat
+    (~0.5 m) to standing (~0.95 m) and back five times (stand-ups at 0.6, 3.2, 5.9, 8.5, 11.1 s; the take's
+    README), soles on the floor."""
+    from rtchannel.body.avatar import load_avatar
+    from rtchannel.body.skinning import skin_vertices
+
+    m = load_motion(shared_data("mocap/opencap/sit_stand/opencap_STS_sample_mocap.json"), activity="stand")
+    assert m.fps == pytest.approx(100.0) and 1.4 <= m.rig.height <= 2.0
+    hips = m.positions[:, 0, 2]
+    standing = hips > 0.5 * (hips.min() + hips.max())
+    rises = np.flatnonzero(np.diff(standing.astype(int)) == 1) / m.fps
+    assert len(rises) == 5 and np.all(np.abs(rises - [0.6, 3.2, 5.9, 8.5, 11.1]) < 0.6), rises
+    assert hips.max() - hips.min() > 0.3
+    v0 = skin_vertices(load_avatar("2k"), m, [0])[0]
+    assert abs(v0[:, 2].min()) < 0.03
+
+
+def test_opencap_json_errors_are_one_line(tmp_path):
+    p = tmp_path / "take.json"
+    p.write_text('{"time": [0, 0.01], "bodies": {"pelvis": {}}}')
+    with pytest.raises(MotionImportError, match=r"take\.json: not OpenSim full-body kinematics: lacks bodies"):
+        load_motion(p)
+    p.write_text("[1, 2")
+    with pytest.raises(MotionImportError, match=r"take\.json: not OpenCap body kinematics JSON"):
+        load_motion(p)

@@ -12,7 +12,7 @@ from rtchannel.motion.retarget import drop_leading_discontinuities, retarget
 from rtchannel.motion.source import check_fps, check_resampled_frames, parse_units, up_rotation
 from rtchannel.motion.pose import Motion
 
-FORMATS = (".bvh", ".c3d", ".amc")
+FORMATS = (".bvh", ".c3d", ".amc", ".json")
 MAX_GAP_LIMIT_S = 10.0  # filling a longer marker gap by interpolation invents the motion
 
 
@@ -24,7 +24,8 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
 
     Args:
         path: a ``.bvh`` (CMU/cgspeed 31-joint or iClone CC_Base rig), ``.c3d`` (CMU 41-marker or Vicon
-            plug-in-gait set) or ``.amc`` file (with its ASF `skeleton`).
+            plug-in-gait set), ``.amc`` file (with its ASF `skeleton`) or OpenCap/OpenSim body kinematics
+            (``.json``).
         fps: resample to this frame rate [Hz] (default: the file's).
         units: file length unit ("m", "cm", "mm", "in", "cmu") or metres per unit; guessed if None.
         up: the file's up axis ("y", "z", "-y", ...); guessed if None.
@@ -72,6 +73,10 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
         from rtchannel.motion.asf_amc import read_asf_amc
 
         src = read_asf_amc(p, Path(skeleton), units=units, up=up)
+    elif ext == ".json":
+        from rtchannel.motion.opencap import read_opencap
+
+        src = read_opencap(p, up=up)
     else:
         from rtchannel.motion.c3d import read_c3d
 
