@@ -446,3 +446,18 @@ def test_unknown_bvh_rig_names_the_joints_it_lacks(tmp_path):
                    "Frame Time: 0.0333333\n0 90 0 0 0 0 0 0 0\n0 90 0 0 0 0 0 0 0\n")
     with pytest.raises(MotionImportError, match=r"odd\.bvh.*closest known rig 'daz' lacks joints .*abdomen"):
         load_motion(bvh)
+
+
+@pytest.mark.parametrize("up", ["z", "x", "-y"])
+def test_a_wrong_up_axis_is_refused_and_the_error_names_the_option(up, tmp_path, capsys, shared_data):
+    """A y-up take read as z, x or -y up leaves the person on their side or upside down at the start: one
+    line naming --up; the right axis (also given explicitly) imports."""
+    from rtchannel.cli import main
+
+    take = str(shared_data("mocap/cmu/sit/75_17.bvh"))
+    with pytest.raises(MotionImportError, match=r"not upright at the start .* pass up= \(--up\)"):
+        load_motion(take, activity="sit", up=up)
+    assert main(["simulate", "--motion-file", take, "--activity", "sit", "--up", up, "--out", str(tmp_path / "x"),
+                 "--quiet", "--no-plots"]) == 2
+    assert "--up" in capsys.readouterr().err
+    assert load_motion(take, activity="sit", up="y").rig.height == pytest.approx(1.745, abs=0.01)

@@ -73,6 +73,9 @@ def add_motion_args(p) -> None:
     p.add_argument("--motion-file", type=Path, help="motion capture instead of a procedural motion: BVH (CMU, iClone "
                    "rigs), C3D (CMU 41 markers, Vicon plug-in-gait) or AMC (with --skeleton)")
     p.add_argument("--skeleton", type=Path, help="--motion-file take.amc: its ASF skeleton file")
+    p.add_argument("--up", choices=("x", "y", "z", "-x", "-y", "-z"),
+                   help="--motion-file: the file's up axis (default: ASF/AMC and OpenCap y; BVH and C3D guessed "
+                   "from head above feet over the whole take)")
     p.add_argument("--height", type=finite_float, default=1.75, help="body height [m] (default 1.75)")
     p.add_argument("--speed", type=finite_float, help="walking speed [m/s] (procedural walk only)")
     p.add_argument("--duration", type=finite_float, help="activity duration [s] (procedural)")
@@ -242,6 +245,8 @@ def build_motion(args):
         if skeleton is not None and not skeleton.is_file():
             raise UserError(f"skeleton file not found: {skeleton}")
         extra = {} if skeleton is None else {"skeleton": skeleton}
+        if getattr(args, "up", None) is not None:
+            extra["up"] = args.up
         motion = Motion.from_file(args.motion_file, height=args.height, activity=args.activity, **extra)
         motion = placed_take(motion, start=args.start, heading_deg=heading, trim=trim)
         return motion if args.fps == motion.fps else motion.resampled(args.fps)

@@ -13,6 +13,8 @@ from rtchannel.motion.source import check_fps, check_resampled_frames, parse_uni
 from rtchannel.motion.pose import Motion
 
 FORMATS = (".bvh", ".c3d", ".amc", ".json")
+PLAUSIBLE_HEIGHT_M = (1.0, 2.3)  # a person's standing height as imported (children excluded)
+HEAD_ABOVE_FEET = 0.5  # first frame: head above the ankles, share of the height (standing ~0.9, seated ~0.6)
 MAX_GAP_LIMIT_S = 10.0  # filling a longer marker gap by interpolation invents the motion
 
 
@@ -97,8 +99,26 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     if bad.any():
         raise MotionImportError(p, "retargeting gave non-finite joint positions (degenerate skeleton or markers: "
                                 "zero-length bones, coincident joints?)", frame=int(np.argmax(bad)))
+    check_plausible(p, motion, height is None)
     if fps is not None and fps != motion.fps:
         check_resampled_frames(motion.duration, fps)
         motion = motion.resampled(fps)
     motion.params = {**motion.params, "file": str(p), "fps": float(motion.fps), "requested_height": height}
     return motion
+
+
+def check_plausible(path: Path, motion: Motion, own_height: bool) -> None:
+    """MotionImportError (one line saying which option fixes it) unless the imported person is 1.0-2.3 m tall
+    (when the height came from the file's own scale) and upright at the first frame (head at least half the
+    height above the ankles: standing or seated, not upside down or on their side, as a wrong up axis leaves
+    them)."""
+    h = motion.rig.height
+    if own_height and not PLAUSIBLE_HEIGHT_M[0] <= h <= PLAUSIBLE_HEIGHT_M[1]:
+        raise MotionImportError(path, f"the person would be {h:.2f} m tall (from the file's leg length), outside "
+                                f"{PLAUSIBLE_HEIGHT_M[0]:g}-{PLAUSIBLE_HEIGHT_M[1]:g} m: wrong length unit? pass units= "
+                                "(or a height)")
+    head = motion.positions[0, motion.rig.index("Head"), 2]
+    feet = max(motion.positions[0, motion.rig.index(f"{s}Foot"), 2] for s in ("Left", "Right"))
+    if head - feet < HEAD_ABOVE_FEET * h:
+        raise MotionImportError(path, f"the person is not upright at the start (head {head - feet:+.2f} m above the "
+                                "feet): wrong up axis? pass up= (--up)")
