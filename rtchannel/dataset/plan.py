@@ -28,7 +28,7 @@ from rtchannel.dataset.plan_schema import (  # noqa: F401 - the schema, re-expor
 from rtchannel.dataset.plan_yaml import check_backend_options, count_items, read_plan_yaml
 from processing.errors import InputError
 
-MOTION_SUFFIXES = (".bvh", ".c3d", ".amc", ".json")
+MOTION_SUFFIXES = (".bvh", ".c3d", ".amc", ".json", ".npz", ".csv")
 PRESETS_DIR = Path(__file__).with_name("presets")
 
 

@@ -12,7 +12,7 @@ from rtchannel.motion.retarget import drop_leading_discontinuities, retarget
 from rtchannel.motion.source import check_fps, check_resampled_frames, parse_units, up_rotation
 from rtchannel.motion.pose import Motion
 
-FORMATS = (".bvh", ".c3d", ".amc", ".json")
+FORMATS = (".bvh", ".c3d", ".amc", ".json", ".npz", ".csv")
 PLAUSIBLE_HEIGHT_M = (1.0, 2.3)  # a person's standing height as imported (children excluded)
 HEAD_ABOVE_FEET = 0.5  # first frame: head above the ankles, share of the height (standing ~0.9, seated ~0.6)
 MAX_GAP_LIMIT_S = 10.0  # filling a longer marker gap by interpolation invents the motion
@@ -26,8 +26,8 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
 
     Args:
         path: a ``.bvh`` (CMU/cgspeed 31-joint or iClone CC_Base rig), ``.c3d`` (CMU 41-marker or Vicon
-            plug-in-gait set), ``.amc`` file (with its ASF `skeleton`) or OpenCap/OpenSim body kinematics
-            (``.json``).
+            plug-in-gait set), ``.amc`` file (with its ASF `skeleton`), OpenCap/OpenSim body kinematics
+            (``.json``) or named joint positions (``.npz``/``.csv``, `rtchannel.motion.joint_tracks`).
         fps: resample to this frame rate [Hz] (default: the file's).
         units: file length unit ("m", "cm", "mm", "in", "cmu") or metres per unit; guessed if None.
         up: the file's up axis ("y", "z", "-y", ...); guessed if None.
@@ -79,6 +79,10 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
         from rtchannel.motion.opencap import read_opencap
 
         src = read_opencap(p, up=up)
+    elif ext in (".npz", ".csv"):
+        from rtchannel.motion.joint_tracks import read_joint_tracks
+
+        src = read_joint_tracks(p, units=units, up=up)
     else:
         from rtchannel.motion.c3d import read_c3d
 
