@@ -461,3 +461,25 @@ def test_a_wrong_up_axis_is_refused_and_the_error_names_the_option(up, tmp_path,
                  "--quiet", "--no-plots"]) == 2
     assert "--up" in capsys.readouterr().err
     assert load_motion(take, activity="sit", up="y").rig.height == pytest.approx(1.745, abs=0.01)
+
+
+def test_mixamo_rig_is_recognised_by_its_joint_names_and_retargets(tmp_path):
+    """A Mixamo-named BVH ("mixamorig:" namespace, Spine/Spine1/Spine2, Neck, no hip joints), made by renaming
+    the joints of a BVH written from a known motion: recognised as Mixamo and retargeted onto the same rig,
+    hips, legs and arms within 1 mm, the head within 2 cm (Mixamo has one neck bone where the rig has two)."""
+    import re
+
+    from rtchannel import Motion
+
+    m = Motion.procedural("pick", height=1.75, seed=0)
+    write_bvh(m, tmp_path / "cmu.bvh")
+    ren = {"LeftFingerBase": "LeftHandMiddle1", "RightFingerBase": "RightHandMiddle1", "LowerBack": "Spine",
+           "Spine": "Spine1", "Spine1": "Spine2", "Neck1": "NeckTwist", "LHipJoint": "LHip_", "RHipJoint": "RHip_"}
+    text = re.sub(r"\b(ROOT|JOINT)\s+(\S+)", lambda mo: f"{mo.group(1)} mixamorig:{ren.get(mo.group(2), mo.group(2))}",
+                  (tmp_path / "cmu.bvh").read_text())
+    (tmp_path / "mixamo.bvh").write_text(text)
+    b = load_motion(tmp_path / "mixamo.bvh", activity="pick", height=1.75, floor=False, align=False)
+    assert b.params["rig"] == "mixamo"
+    for joint in ("Hips", "LeftUpLeg", "RightLeg", "LeftFoot", "LeftArm", "RightHand"):
+        assert np.abs(b.positions[:, b.rig.index(joint)] - m.positions[:, m.rig.index(joint)]).max() < 1e-3, joint
+    assert np.abs(b.positions[:, b.rig.index("Head")] - m.positions[:, m.rig.index("Head")]).max() < 0.02

@@ -282,6 +282,8 @@ def forward_kinematics_bvh(raw: dict) -> tuple[np.ndarray, np.ndarray]:
 def _rig_kind(names: list[str]) -> str:
     if "CC_Base_Hip" in names:
         return "cc"
+    if RIG_JOINTS["mixamo"] <= set(names) and "LHipJoint" not in names:
+        return "mixamo"
     if {"Hips", "LeftUpLeg", "RightUpLeg", "LeftLeg", "LeftFoot"} <= set(names):
         return "cmu"
     if {"hip", "abdomen", "chest", "lThigh", "rThigh", "lShin", "lFoot", "head"} <= set(names):
@@ -289,17 +291,20 @@ def _rig_kind(names: list[str]) -> str:
     best = max(RIG_JOINTS, key=lambda k: len(RIG_JOINTS[k] & set(names)))
     raise InputError(f"unknown BVH skeleton: closest known rig {best!r} lacks joints "
                      f"{', '.join(sorted(RIG_JOINTS[best] - set(names))[:8])} (known rigs: cgspeed CMU, iClone "
-                     f"CC_Base, Daz/Genesis)")
+                     f"CC_Base, Daz/Genesis, Mixamo)")
 
 
 # the joints that identify each rig (named in the error for a skeleton that matches none)
 RIG_JOINTS = {"cmu": {"Hips", "LeftUpLeg", "RightUpLeg", "LeftLeg", "LeftFoot"},
               "cc": {"CC_Base_Hip", "CC_Base_L_Thigh", "CC_Base_L_Calf", "CC_Base_L_Foot"},
-              "daz": {"hip", "abdomen", "chest", "lThigh", "rThigh", "lShin", "lFoot", "head"}}
+              "daz": {"hip", "abdomen", "chest", "lThigh", "rThigh", "lShin", "lFoot", "head"},
+              "mixamo": {"Hips", "Spine", "Spine1", "Spine2", "Neck", "Head", "LeftUpLeg", "LeftLeg", "LeftFoot",
+                         "RightUpLeg", "LeftArm", "LeftForeArm", "LeftHand"}}
 
 
 _LEG = {"cc": ("CC_Base_L_Thigh", "CC_Base_L_Calf", "CC_Base_L_Foot", "CC_Base_Head"),
-        "cmu": ("LeftUpLeg", "LeftLeg", "LeftFoot", "Head"), "daz": ("lThigh", "lShin", "lFoot", "head")}
+        "cmu": ("LeftUpLeg", "LeftLeg", "LeftFoot", "Head"), "daz": ("lThigh", "lShin", "lFoot", "head"),
+        "mixamo": ("LeftUpLeg", "LeftLeg", "LeftFoot", "Head")}
 
 
 def read_bvh(path, *, units=None, up=None) -> SourceMotion:
@@ -313,7 +318,8 @@ def read_bvh(path, *, units=None, up=None) -> SourceMotion:
     """
     path = Path(path)
     raw = read_bvh_raw(path)
-    names = raw["names"]
+    # namespaces ("mixamorig:Hips", "mixamorig1:Hips") name the exporter, not the joint
+    names = raw["names"] = [n.rsplit(":", 1)[-1] for n in raw["names"]]
     try:
         kind = _rig_kind(names)
     except ValueError as exc:

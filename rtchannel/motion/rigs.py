@@ -90,6 +90,26 @@ JOINT_MAPS: dict[str, dict] = {
             "Head": (None, None, ("only", "head")),
         },
     },
+    # Mixamo (Adobe) rigs, namespace prefix removed: three spine bones, one neck, no hip joints
+    "mixamo": {
+        "hips": ("LeftUpLeg", "RightUpLeg"),
+        "leg": ("LeftUpLeg", "LeftLeg", "LeftFoot"),
+        "bones": {
+            "Hips": ("RightUpLeg", "LeftUpLeg", ("orient", "Hips")),
+            **{f"{S}{a}": (f"{S}{b}", f"{S}{c}", ("orient", f"{S}{b}"))
+               for S, _ in _SIDES
+               for a, b, c in (("UpLeg", "UpLeg", "Leg"), ("Leg", "Leg", "Foot"), ("Foot", "Foot", "ToeBase"),
+                               ("Shoulder", "Shoulder", "Arm"), ("Arm", "Arm", "ForeArm"), ("ForeArm", "ForeArm", "Hand"))},
+            **{f"{S}Hand": (f"{S}Hand", f"{S}HandMiddle1|{S}HandIndex1", ("orient", f"{S}Hand")) for S, _ in _SIDES},
+            **{f"{S}ToeBase": (f"{S}ToeBase", f"{S}ToeBase/End|{S}Toe_End", ("orient", f"{S}ToeBase")) for S, _ in _SIDES},
+            "LowerBack": ("Spine", "Spine1", ("orient", "Spine")),
+            "Spine": ("Spine1", "Spine2", ("orient", "Spine1")),
+            "Spine1": ("Spine2", "Neck", ("orient", "Spine2")),
+            "Neck": ("Neck", "Head", ("orient", "Neck")),
+            "Neck1": ("Neck", "Head", ("orient", "Neck")),
+            "Head": (None, None, ("only", "Head")),
+        },
+    },
     "c3d": {
         "hips": ("LHJC", "RHJC"),
         "leg": ("LHJC", "LKJC", "LAJC"),
