@@ -23,6 +23,7 @@ _EXPORTS = {
     # motion, radar, scene
     "Motion": ("rtchannel.motion.pose", "Motion"),
     "Rig": ("rtchannel.motion.pose", "Rig"),
+    "place_take": ("rtchannel.motion.compose", "place_take"),
     "Radar": ("rtchannel.radar", "RadarConfig"),
     "Link": ("rtchannel.radar", "Link"),
     "Scene": ("rtchannel.scene.spec", "Scene"),

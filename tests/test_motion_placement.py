@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rtchannel.cli import main
-from rtchannel.cli.common import placed_take
+from rtchannel.motion.compose import place_take as placed_take
 from rtchannel.motion.pose import Motion
 
 TAKE = "mocap/cmu/walk/05_01_iclone.bvh"  # 4.4 m straight walk along the take's own forward axis

@@ -213,24 +213,6 @@ def load_radar(args):
     return radar.rotated(angle), angle
 
 
-def placed_take(motion, start=None, heading_deg=None, trim=None):
-    """An imported take placed as the CLI places it: `trim` (t0, t1) [s] first, turned to face `heading_deg`
-    [deg] about its first frame's hips, then started at `start` (x, y) [m]; without a start a walk is centred
-    on the origin like a procedural one, any other take starts over the origin (as imported)."""
-    from rtchannel.motion.augment import augment
-    from rtchannel.motion.compose import centre_walk
-
-    if trim is not None and not 0 <= trim[0] < trim[1]:
-        raise UserError(f"--trim: need 0 <= START < END seconds, got {trim[0]:g} {trim[1]:g}")
-    if trim is not None and trim[0] >= motion.duration:
-        raise UserError(f"--trim: START {trim[0]:g} s lies after the take's end ({motion.duration:.2f} s)")
-    out = augment(motion, heading_deg=heading_deg or 0.0, trim=None if trim is None else (trim[0], trim[1]),
-                  start=None if start is None else tuple(start))
-    if start is None and motion.activity == "walk":
-        out = centre_walk(out)
-    return out
-
-
 def build_motion(args):
     """The motion the user asked for: a motion-capture file or a procedural activity."""
 
@@ -238,6 +220,8 @@ def build_motion(args):
 
     heading = getattr(args, "heading", None)
     trim = getattr(args, "trim", None)
+    from rtchannel.motion.compose import place_take
+
     if args.motion_file is not None:
         if not args.motion_file.is_file():
             raise UserError(f"motion file not found: {args.motion_file}")
@@ -248,7 +232,7 @@ def build_motion(args):
         if getattr(args, "up", None) is not None:
             extra["up"] = args.up
         motion = Motion.from_file(args.motion_file, height=args.height, activity=args.activity, **extra)
-        motion = placed_take(motion, start=args.start, heading_deg=heading, trim=trim)
+        motion = place_take(motion, start=args.start, heading_deg=heading, trim=trim)
         return motion if args.fps == motion.fps else motion.resampled(args.fps)
     if trim is not None:
         raise UserError("--trim applies to --motion-file; a procedural activity takes --duration")

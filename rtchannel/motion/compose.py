@@ -108,3 +108,22 @@ def centre_walk(motion: Motion, back_and_forth_legs: int = 1) -> Motion:
     hips = motion.positions[:, 0, :2]
     mid = (0.5 * (hips.min(axis=0) + hips.max(axis=0)) if back_and_forth_legs > 1 else 0.5 * (hips[0] + hips[-1]))
     return motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
+
+
+def place_take(motion: Motion, start=None, heading_deg: float | None = None, trim=None) -> Motion:
+    """An imported take `motion` placed in the room: `trim` (t0, t1) [s] of it kept first, turned to face `heading_deg`
+    [deg, counter-clockwise from +x] about its first frame's hips, then started at `start` (x, y) [m]; without a
+    start a walk is centred on the origin like a procedural one (`centre_walk`), any other take starts over
+    the origin as imported. InputError (naming --trim) for a window outside the take."""
+    from processing.errors import InputError
+    from rtchannel.motion.augment import augment
+
+    if trim is not None and not 0 <= trim[0] < trim[1]:
+        raise InputError(f"--trim: need 0 <= START < END seconds, got {trim[0]:g} {trim[1]:g}")
+    if trim is not None and trim[0] >= motion.duration:
+        raise InputError(f"--trim: START {trim[0]:g} s lies after the take's end ({motion.duration:.2f} s)")
+    out = augment(motion, heading_deg=heading_deg or 0.0, trim=None if trim is None else (trim[0], trim[1]),
+                  start=None if start is None else tuple(start))
+    if start is None and motion.activity == "walk":
+        out = centre_walk(out)
+    return out
