@@ -8,7 +8,7 @@ import pytest
 
 from rtchannel.cli import main
 
-COMMANDS = ["simulate", "render", "bench", "compare", "dataset", "train", "evaluate", "crossval"]
+COMMANDS = ["simulate", "render", "bench", "compare", "dataset", "train", "evaluate", "crossval", "robustness", "data"]
 
 
 def test_help_for_every_command(capsys):

@@ -1,5 +1,4 @@
 """The `glasgow` dataset preset and the motion composition it relies on (back-and-forth walks, fixed clips)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +15,10 @@ from thirdparty import data_path, registered
 # swinging foot, peaks at ~5 m/s (0.08 m per frame); a join without a turn (a pose switched to one facing
 # the other way) would move the hands and feet by 0.3-1 m in one frame.
 MAX_STEP_M = 0.12
-GLASGOW_TAKES = registered("mocap/cmu/walk/*_iclone.bvh") + ["mocap/cmu/sit/75_17.bvh"]  # the preset's real takes
+GLASGOW_TAKES = (registered("mocap/cmu/walk/*_iclone.bvh") + registered("mocap/cmu/walk_daz/*.bvh")
+                 + ["mocap/cmu/sit/75_17.bvh", "mocap/opencap/sit_stand/opencap_STS_sample_mocap.json"]
+                 + registered("mocap/hdm05/pick/*") + registered("mocap/hdm05/asf/*")
+                 + registered("mocap/msm2017/pick/*"))  # the preset's real takes
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +40,10 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
         assert radar.antenna.kind == "yagi" and radar.receiver.transmit_power_dbm == 18.0
         assert radar.dsp.window_chirps == 200 and radar.dsp.velocity_crop_mps == 6.0
         (link,) = radar.links
-        # the dataset's people are 1-4 m from the radar: the activity spot (origin) is
-        assert 1.0 <= np.hypot(*link.tx_pos[:2]) <= 4.0 and it.angle_deg == 0.0
+        # the radar 1.2-5 m from the activity spot (origin), walks and falls further (the preset's header),
+        # antennas 0.5-1.6 m high
+        lo = {"walk": 2.6, "fall": 2.8}.get(it.activity, 1.2)
+        assert lo <= np.hypot(*link.tx_pos[:2]) <= 5.0 and 0.5 <= link.tx_pos[2] <= 1.6 and it.angle_deg == 0.0
         # boresight toward the person's vertical axis, tilted by the drawn downtilt (-5..15 deg), and a drawn
         # elevation beamwidth (18-45 deg): neither is published for the kit
         b = radar.antenna.boresight_unit(link.tx_pos)
@@ -49,39 +53,51 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
         assert -5.0 <= tilt <= 15.0 and np.degrees(np.arcsin(b[2])) == pytest.approx(-tilt, abs=1e-9)
         assert 18.0 <= radar.antenna.hpbw_el_deg <= 45.0
         assert it.motion["clip_s"] == (10.0 if it.activity == "walk" else 5.0)
-    # real motion capture where it exists: walks and the two parts of 75_17
+    # the two placements of one motion are drawn independently, and cover the ranges
+    dist = np.array([np.hypot(*it.radar["links"][0]["tx"][:2]) for it in items if it.activity == "sit"])
+    assert dist.min() < 1.5 and dist.max() > 4.7
+    # real motion capture: walks of 13 people's takes, the two parts of 75_17, OpenCap, HDM05, MSM2017
     files = {(it.activity, it.source) for it in items if it.motion["kind"] == "file"}
     assert {("sit", "75_17.bvh"), ("stand", "75_17.bvh")} <= files
-    # all ten CMU iClone walks of the data registry (14 motion sources per class, see the preset)
-    assert sorted(f for a, f in files if a == "walk") == sorted(Path(p).name for p in GLASGOW_TAKES if "/walk/" in p)
-    assert sum(a == "walk" for a, _ in files) == 10
-    # frontal falls only: generator seed = 0 (mod 3) is the forward fall
-    assert all(it.motion["params"]["seed"] % 3 == 0 for it in items if it.activity == "fall")
+    assert sum(a == "walk" for a, _ in files) == 13
+    assert {a for a, f in files if "opencap" in f} == {"sit", "stand"}
+    # falls in every direction the generator has: seed mod 3 = 0 forward, 1 left, 2 right
+    assert {it.motion["params"]["seed"] % 3 for it in items if it.activity == "fall"} == {0, 1, 2}
     # per-part RCS shares at 5.8 GHz on the area law (the preset's header): trunk up, shins and feet down
     for it in items[:2]:
         scale = it.gain_set["scale"]
         assert scale["chest"] == scale["pelvis"] > 1 > scale["left_shin"] > scale["left_foot"] == scale["right_toe"]
     assert {it.gain_set["name"] for it in items} == {"rcs", "rcs_jitter"}
-    # activities start early in their recordings, some already under way (the preset's header); walks fill theirs
-    starts = [it.motion.get("clip_start_s") for it in items]
-    assert all((x is None) == (it.activity == "walk") for x, it in zip(starts, items))
-    assert -0.4 <= min(x for x in starts if x is not None) < 0 < max(x for x in starts if x is not None) <= 1.2
+    # no campaign's onsets: every activity lies anywhere in its clip; people of 1.45-1.95 m at 0.6-1.6x pace,
+    # facing the radar +-60 deg; walks of 1-4 legs, either way first, at their own speed
+    assert {it.motion["clip_start_s"] for it in items} == {"anywhere"}
+    assert all(1.45 <= it.motion["height"] <= 1.95 and -60 <= it.motion["heading_deg"] % 360 - 360 * (
+        it.motion["heading_deg"] % 360 > 180) <= 60 or it.activity == "walk" for it in items)
+    walks = [it.motion for it in items if it.activity == "walk"]
+    assert {m.get("walk_legs", 1) for m in walks} == {1, 2, 3, 4} and all(m["time_scale"] == 1.0 for m in walks)
+    assert 0.3 < np.mean([abs(m["heading_deg"]) > 90 for m in walks]) < 0.7
+    others = [it.motion["time_scale"] for it in items if it.activity != "walk"]
+    assert 0.625 <= min(others) < 0.7 and 1.6 < max(others) <= 1.667
     # sit and stand get a chair on the mesh backends (the points backend is free space)
     assert all(it.chair == "auto" for it in items)
 
 
 @pytest.mark.parametrize("activity, kind", [("walk", "procedural"), ("walk", "file"), ("stand", "file")])
 def test_built_motions_have_the_clip_length_and_walks_go_back_and_forth(items, activity, kind):
-    it = next(i for i in items if i.activity == activity and i.motion["kind"] == kind)
+    # a walk of >= 3 legs that fit its 10 s clip (a 0.3 m/s walk of 3 m fills it with one leg)
+    it = next(i for i in items if i.activity == activity and i.motion["kind"] == kind and (activity != "walk" or (
+        i.motion.get("walk_legs", 1) >= 3 and i.motion.get("params", {}).get("speed", 1.3) >= 1.0
+        and i.motion.get("params", {}).get("distance", 2.0) <= 2.5)))
     m = build_motion(it.motion)
     assert m.duration == pytest.approx(it.motion["clip_s"], abs=0.5 / m.fps)
     assert np.abs(np.diff(m.positions, axis=0)).max() <= MAX_STEP_M
     if activity == "walk":
-        # radial (x) hips velocity over 0.5 s steps: toward the radar (+x), away, toward again
+        # radial (x) hips velocity over 0.5 s steps: toward the radar (+x), away, toward again, or the other
+        # way round (faced +-60 deg off the radar line, the walk's x component is at least half of it)
         x = m.positions[:: int(m.fps // 2), 0, 0]
-        signs = np.sign(np.diff(x)[np.abs(np.diff(x)) > 0.2])  # moving > 0.4 m/s
+        signs = np.sign(np.diff(x)[np.abs(np.diff(x)) > 0.1])  # moving > 0.2 m/s along x
         runs = signs[np.r_[True, signs[1:] != signs[:-1]]]
-        assert list(runs[:3]) == [1, -1, 1]
+        assert len(runs) >= 3 and list(runs[:3]) == [runs[0], -runs[0], runs[0]]
 
 
 def test_every_shipped_walk_take_builds_a_back_and_forth_clip(items):
@@ -94,7 +110,7 @@ def test_every_shipped_walk_take_builds_a_back_and_forth_clip(items):
         m = build_motion(it.motion)
         assert m.duration == pytest.approx(10.0, abs=0.5 / m.fps), it.source
         assert np.isfinite(m.positions).all() and np.abs(np.diff(m.positions, axis=0)).max() <= MAX_STEP_M, it.source
-    assert len(seen) == 10
+    assert len(seen) == 13
 
 
 def test_back_and_forth_returns_along_its_path_and_fit_clip_holds_poses():
@@ -195,9 +211,11 @@ def test_back_and_forth_walks_are_centred_on_the_activity_spot(items, legs):
     """With an even number of legs the walk ends where it began; it must still straddle the origin (the
     radar stands 2.5 m from it: a 2.4 m leg starting at the origin would walk into it)."""
     it = next(i for i in items if i.activity == "walk" and i.motion["kind"] == "procedural")
-    m = build_motion({**it.motion, "walk_legs": legs, "params": {**it.motion["params"], "distance": 2.4}})
+    # without the clip (it may cut a long walk anywhere): the whole walk is what is centred
+    m = build_motion({**it.motion, "walk_legs": legs, "params": {**it.motion["params"], "distance": 2.4},
+                      "clip_s": None})
     hips = m.positions[:, 0, :2]
     centre = 0.5 * (hips.min(axis=0) + hips.max(axis=0))
-    # the hips' extent is centred within 1 cm (float rounding of the turns); it spans ~2.4 m along x
+    # the hips' extent is centred within 1 cm (float rounding of the turns); it spans ~2.4 m along the walk
     np.testing.assert_allclose(centre, 0.0, atol=0.01)
-    assert np.ptp(hips[:, 0]) > 2.0
+    assert np.hypot(*np.ptp(hips, axis=0)) > 2.0

@@ -58,7 +58,7 @@ def build_motion(m: dict) -> Motion:
     """The augmented motion of an item's motion dict (cached per process by its key)."""
     def make():
         from rtchannel.motion.augment import augment
-        from rtchannel.motion.compose import back_and_forth, centre_walk, fit_clip
+        from rtchannel.motion.compose import back_and_forth, centre_walk, clip_start_anywhere, fit_clip
 
         motion = augment(_base_motion(m), time_scale=m["time_scale"], mirror=m["mirror"], trim=m.get("trim"),
                          heading_deg=m["heading_deg"], start=None if m["start"] == "auto" else m["start"])
@@ -67,7 +67,10 @@ def build_motion(m: dict) -> Motion:
         if m["start"] == "auto" and m["activity"] == "walk":
             motion = centre_walk(motion, m.get("walk_legs", 1))
         if m.get("clip_s") is not None:
-            motion = fit_clip(motion, m["clip_s"], m["clip_lead"], m.get("clip_start_s"))
+            start = m.get("clip_start_s")
+            if start == "anywhere":
+                start = clip_start_anywhere(motion.duration, m["clip_s"], m["clip_start_u"], m["clip_overhang"])
+            motion = fit_clip(motion, m["clip_s"], m["clip_lead"], start)
         if m.get("idle") is not None:  # after the clip fit: the held poses before and after move too
             from rtchannel.motion.idle import IdleMotion, add_idle
 

@@ -245,26 +245,39 @@ def expand(plan: Plan) -> list[WorkItem]:
             motion = {**base, "fps": ml.fps, "height": _draw(h, rng), "time_scale": float(_draw(ts, rng)),
                       "mirror": mirror, "heading_deg": float(_draw(hd, rng)), "start": start, "key": motion_id}
             clip = for_activity(ml.clip_s, act)
-            if act == "walk" and ml.walk_legs > 1:
-                motion.update(walk_legs=ml.walk_legs, walk_turn_s=float(_draw(ml.walk_turn_s, rng)))
+            if act == "walk" and ml.walk_legs != 1:
+                legs = ml.walk_legs
+                if isinstance(legs, tuple):
+                    legs = int(rng.integers(legs[0], legs[1] + 1))
+                motion.update(walk_legs=legs, walk_turn_s=float(_draw(ml.walk_turn_s, rng)))
             if clip is not None:  # drawn after the seed's draws: plans without clip_s keep their motions
                 motion.update(clip_s=float(clip), clip_lead=float(rng.uniform(0.0, 1.0)))
                 start = for_activity(ml.clip_start_s, act)
-                if start is not None:  # drawn after the lead: plans without clip_start_s keep their motions
+                if start == "anywhere":  # the motion's duration is known when it is built
+                    motion.update(clip_start_s="anywhere", clip_start_u=float(rng.uniform(0.0, 1.0)),
+                                  clip_overhang=ml.clip_overhang)
+                elif start is not None:  # drawn after the lead: plans without clip_start_s keep their motions
                     motion.update(clip_start_s=float(_draw(start, rng)))
             if ml.idle is not None:
                 idle = ml.idle.scaled(float(_draw(ml.idle_scale, rng)))
                 motion.update(idle=idle.model_dump(mode="json"), idle_seed=int(rng.integers(2 ** 31)))
+            if act == "walk":  # after every other draw: plans without these fields keep their motions
+                if ml.walk_reverse > 0 and rng.random() < ml.walk_reverse:
+                    motion.update(heading_deg=motion["heading_deg"] + 180.0)
+                if not ml.walk_time_scale:
+                    motion.update(time_scale=1.0)
+            drawn = (ph.downtilt_deg, ph.hpbw_el_deg, ph.distance_m, ph.height_m)
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
-                radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
-                         "links": [link.model_dump(mode="json") for link in ls.links], **ph.kit(ls.links)}
-                if ph.downtilt_deg is not None or ph.hpbw_el_deg is not None:  # own stream: other draws unchanged
+                links = ls.links
+                if any(x is not None for x in drawn):  # own stream: other draws unchanged
                     arng = np.random.default_rng(derive_seed(plan.seed, f"antenna:{motion_id}-p{pi}"))
-                    ant = dict(radar["antenna"])
-                    for key in ("downtilt_deg", "hpbw_el_deg"):
-                        if getattr(ph, key) is not None:
-                            ant[key] = float(_draw(getattr(ph, key), arng))
-                    radar["antenna"] = ant
+                    ant = {key: float(_draw(getattr(ph, key), arng))
+                           for key in ("downtilt_deg", "hpbw_el_deg") if getattr(ph, key) is not None}
+                    links = ph.placed(links, act, arng)
+                radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
+                         "links": [link.model_dump(mode="json") for link in links], **ph.kit(links)}
+                if any(x is not None for x in drawn) and ant:
+                    radar["antenna"] = {**radar["antenna"], **ant}
                 for gi, (gs, snr, cl) in enumerate(sig_axes):
                     item_id = f"{motion_id}-p{pi:0{wp}d}-s{gi:0{ws}d}"
                     items.append(WorkItem(

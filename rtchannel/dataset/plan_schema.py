@@ -7,6 +7,7 @@ import hashlib
 import json
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from processing.dsp.signatures import DSPConfig
@@ -99,16 +100,24 @@ class MotionLayer(_Model):
     starts: list[Literal["auto"] | tuple[Scalar, Scalar]] = Field(
         ["auto"], min_length=1, description="first-frame hips (x, y) [m]; auto: walks centred on the origin")
     fps: float = Field(60.0, ge=10, le=2000, description="motion frame rate [Hz]")
-    walk_legs: int = Field(1, ge=1, le=20, description="walks go back and forth: this many passes of each walk, "
-                           "joined by turns on the spot (rtchannel.motion.compose.back_and_forth)")
+    walk_legs: int | tuple[int, int] = Field(1, description="walks go back and forth: this many passes of each "
+                                             "walk (or a [low, high] range of whole numbers, drawn per motion), "
+                                             "joined by turns on the spot (rtchannel.motion.compose.back_and_forth)")
+    walk_reverse: float = Field(0.0, ge=0, le=1, description="probability that a walk is turned 180 deg (starts "
+                                "walking away from where it would walk toward), drawn per motion")
+    walk_time_scale: bool = Field(True, description="apply time_scales to walks; false: a walk's pace is its "
+                                  "generator's speed (a slow walk takes shorter steps, it is not slow motion)")
     walk_turn_s: Scalar = Field(0.8, description="duration of one turn between walk legs [s] (or a range)")
     clip_s: dict[str, float] = Field(default_factory=dict, description="recording length [s] per activity ('*': "
                                      "any other): motions are padded with their first/last pose (split drawn "
                                      "per motion) or cut to it, as real fixed-length recordings")
-    clip_start_s: Scalar | dict[str, Scalar] | None = Field(
+    clip_start_s: Scalar | Literal["anywhere"] | dict[str, Scalar | Literal["anywhere"]] | None = Field(
         None, description="time of a motion's first frame in its recording [s] (or a range, drawn per motion; or "
-        "these per activity, '*': any other); negative: the recording begins that far into the motion. None: "
-        "the motion lies inside its recording, its padding split at random")
+        "these per activity, '*': any other); negative: the recording begins that far into the motion. "
+        "'anywhere': drawn uniformly over every start that keeps all but clip_overhang of the motion inside the "
+        "recording. None: the motion lies inside its recording, its padding split at random")
+    clip_overhang: float = Field(0.3, ge=0, le=0.9, description="clip_start_s 'anywhere': share of the motion's "
+                                 "duration that may lie outside the recording, at its start or its end")
     idle: IdleMotion | None = Field(None, description="small random upper-body movements added to every motion "
                                     "(rtchannel.motion.idle); null: none")
     idle_scale: Scalar = Field(1.0, description="factor on the idle amplitudes (or a range, drawn per motion: "
@@ -126,7 +135,8 @@ class MotionLayer(_Model):
     @classmethod
     def _start(cls, v):
         for k, x in (_per_activity(v, "clip_start_s") if isinstance(v, dict) else {"": v}).items():
-            _within(x, -30.0, 600.0, f"clip_start_s.{k}" if k else "clip_start_s", " s")
+            if x != "anywhere":
+                _within(x, -30.0, 600.0, f"clip_start_s.{k}" if k else "clip_start_s", " s")
         return v
 
     @field_validator("idle_scale")
@@ -143,6 +153,16 @@ class MotionLayer(_Model):
             except ValidationError as e:
                 raise InputError(f"idle_scale {hi} takes the idle amplitudes out of range: {one_line(e)}") from None
         return self
+
+    @field_validator("walk_legs")
+    @classmethod
+    def _legs(cls, v):
+        for x in (v if isinstance(v, tuple) else (v,)):
+            if not 1 <= x <= 20:
+                raise InputError(f"walk_legs {x} outside 1-20")
+        if isinstance(v, tuple) and v[0] > v[1]:
+            raise InputError(f"walk_legs range {list(v)} must be [low, high] with low <= high")
+        return v
 
     @field_validator("walk_turn_s")
     @classmethod
@@ -220,6 +240,25 @@ class PhysicalLayer(_Model):
                                         "(value or [low, high] drawn per item), -60..60")
     hpbw_el_deg: Scalar | None = Field(None, description="glasgow kit: elevation beamwidth of the Yagis [deg] "
                                        "(value or [low, high] drawn per item), 5..170")
+    distance_m: Scalar | dict[str, Scalar] | None = Field(
+        None, description="horizontal distance of every antenna from the person's spot (the walk centre) [m] (value "
+        "or [low, high] drawn per item; or these per activity, '*': any other), 0.5..30; the link sets' antenna "
+        "azimuths are kept. None: the link sets' positions")
+    height_m: Scalar | None = Field(None, description="height of every antenna above the floor [m] (value or "
+                                    "[low, high] drawn per item), 0.1..5. None: the link sets' heights")
+
+    @field_validator("distance_m")
+    @classmethod
+    def _distance_range(cls, v):
+        for k, x in (_per_activity(v, "distance_m") if isinstance(v, dict) else {"": v}).items():
+            if x is not None:
+                _within(x, 0.5, 30.0, f"distance_m.{k}" if k else "distance_m", " m")
+        return v
+
+    @field_validator("height_m")
+    @classmethod
+    def _height_range(cls, v):
+        return v if v is None else _within(v, 0.1, 5.0, "height_m", " m")
 
     @field_validator("downtilt_deg")
     @classmethod
@@ -262,6 +301,27 @@ class PhysicalLayer(_Model):
         if len(set(names)) != len(names):
             raise InputError(f"link set names must be unique, got {names}")
         return self
+
+    def placed(self, links: list[Link], activity: str, rng) -> list[Link]:
+        """`links` with distance_m and height_m drawn from `rng` (each antenna moved along its azimuth to the
+        drawn horizontal distance, at the drawn height); unchanged where neither is set."""
+        d = for_activity(self.distance_m, activity)
+        h = None if self.height_m is None else float(rng.uniform(*self.height_m)) if isinstance(
+            self.height_m, tuple) else float(self.height_m)
+        d = None if d is None else float(rng.uniform(*d)) if isinstance(d, tuple) else float(d)
+        if d is None and h is None:
+            return links
+
+        def move(p):
+            if p is None:
+                return None
+            xy = np.asarray(p[:2], float)
+            r = float(np.hypot(*xy))
+            if d is not None and r == 0:
+                raise InputError("distance_m needs antennas off the vertical through the person's spot")
+            xy = xy if d is None else xy * (d / r)
+            return (float(xy[0]), float(xy[1]), float(p[2] if h is None else h))
+        return [link.model_copy(update={"tx": move(link.tx), "rx": move(link.rx)}) for link in links]
 
     def rotations(self) -> list[tuple[float, int | None]]:
         """(rotation angle [deg], seed direction or None) per physical direction."""

@@ -100,6 +100,19 @@ def fit_clip(motion: Motion, clip_s: float, lead: float = 0.5, start_s: float | 
                    params={**motion.params, "clip": clip})
 
 
+def clip_start_anywhere(duration_s: float, clip_s: float, u: float, overhang: float) -> float:
+    """Start time [s] of a `duration_s` motion in a `clip_s` recording for `fit_clip`, at the point `u` in
+    [0, 1] of the range of starts that keep all but the share `overhang` of the motion inside the recording:
+    from -overhang * duration (the recording begins inside the motion) to clip_s - (1 - overhang) * duration
+    (it ends before the motion does); for a motion longer than that allows, the other way round."""
+    if not (0 <= u <= 1 and 0 <= overhang < 1 and duration_s > 0 and clip_s > 0):
+        raise InputError(f"clip_start_anywhere: u {u}, overhang {overhang}, duration {duration_s} s, clip {clip_s} s")
+    lo, hi = -overhang * duration_s, clip_s - (1 - overhang) * duration_s
+    lo, hi = min(lo, hi), max(lo, hi)
+    eps = 1e-3 * min(duration_s, clip_s)  # fit_clip needs -duration < start < clip
+    return float(np.clip(lo + u * (hi - lo), -duration_s + eps, clip_s - eps))
+
+
 def centre_walk(motion: Motion, back_and_forth_legs: int = 1) -> Motion:
     """A walk moved horizontally so that its path is centred on the origin (as procedural walks are): it
     then passes the room centre whatever its heading and length. The middle of a one-way walk is that of its

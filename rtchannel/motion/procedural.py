@@ -65,7 +65,9 @@ class ProceduralParams(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     height: float = Field(1.75, ge=1.2, le=2.2, description="body height [m]")
-    speed: float = Field(1.3, ge=0.5, le=2.5, description="walking speed [m/s] (walk only)")
+    # 0.3 m/s: frail older adults (Studenski et al. 2011, JAMA 305:50-58: gait speeds 0.2-1.6 m/s in people
+    # aged 65+, < 0.6 m/s common in the over-85s); a slow walk has short steps, the cadence floor below
+    speed: float = Field(1.3, ge=0.3, le=2.5, description="walking speed [m/s] (walk only)")
     duration: float | None = Field(None, gt=0, le=120, description="activity duration [s]")
     distance: float | None = Field(None, ge=0.5, le=200, description="walk distance [m]")
     step_length: float | None = Field(None, ge=0.2, le=1.6, description="walking step length [m]")
@@ -80,6 +82,8 @@ class ProceduralParams(BaseModel):
     pad_after: float = Field(0.5, ge=0, le=30, description="quiet time after the activity [s]")
     hold_fraction: float | None = Field(None, ge=0, le=0.4, description="pick: share of the duration spent "
                                         "at the bottom (None: PICK_HOLD, 0.13)")
+    arm_swing: float = Field(1.0, ge=0, le=2, description="walk: factor on the arm swing (older people swing "
+                             "their arms less, at any speed)")
 
     @model_validator(mode="after")
     def _cadence(self) -> "ProceduralParams":
@@ -338,7 +342,9 @@ def _walk(rig: Rig, p: ProceduralParams, rng):
     # Whole number of steps between the first toe-off and the last heel strike: adjust the stride.
     n_steps = max(2, round(2 * (dist / (v * period0) + 0.7)))
     period = float(np.clip(dist / v / (n_steps / 2 - 0.7), 0.8 * period0, 1.25 * period0))
-    beta = float(np.clip(0.62 - 0.04 * (v - 0.8), 0.56, 0.64))  # stance fraction of the cycle
+    # stance fraction of the cycle; below 0.8 m/s double support lengthens faster (slow, cautious gait: stance
+    # ~67 % of the cycle at 0.3 m/s against ~60 % at normal speed, Winter 1991; Hollman et al. 2011)
+    beta = float(np.clip(0.62 - 0.04 * (v - 0.8) + 0.06 * max(0.8 - v, 0.0), 0.56, 0.68))
     rock, rise, ramp = 0.10 * period, 0.22 * period, 0.8 * period
     t_toe_off = p.pad_before + rise  # the right heel starts rising when the pad ends
     t_r0 = t_toe_off - 0.1 * period
@@ -398,7 +404,7 @@ def _walk(rig: Rig, p: ProceduralParams, rng):
     for side, (ankle, pitch) in tracks.items():
         glob.update(km.leg_ik(rig, side, km.hip_centre(rig, side, root, pelvis), ankle, pitch))
     lean = (2.0 + 2.5 * v) * e
-    swing = (6.0 + 8.0 * v) * _jitter(rng) * e
+    swing = (6.0 + 8.0 * v) * p.arm_swing * _jitter(rng) * e
     arms = _arms(rig, 3 * e - swing * np.cos(cyc - lag), 3 * e + swing * np.cos(cyc - lag), 8 + 2 * e, 8 + 2 * e,
                  15 + e * (8 - 8 * np.cos(cyc - 2 * lag)), 15 + e * (8 + 8 * np.cos(cyc - 2 * lag)))
     loc = {**km.spine_local(lean - tilt, -0.8 * roll, -1.6 * yaw), **arms,
