@@ -10,7 +10,11 @@ convolutions on a 256 x 256 image; the default here is the same 3x3 'valid' stac
 and keeps training of the seed-size dataset within minutes on two CPU cores. MLP: Linear -> ReLU -> 15 % dropout -> Linear to the class logits.
 
 Options (one code path): `n_branches` 1 (single radar) or 2+; `fusion` concat (seed), sum, max, mean;
-`shared_weights` (one FEN applied to every radar); `kernel_size` 3 or 4; `padding` same or valid.
+`shared_weights` (one FEN applied to every radar); `kernel_size` 3 or 4; `padding` same or valid;
+`time_pool` ('none', seed; 'max' or 'mean'): the FEN's last feature map pooled over its time axis before
+flattening, so the features say *what* happened at any time rather than *when* in the clip (issue 27: a
+simulation-trained model had learnt where each activity sits in its clip). Checkpoints written before the
+field existed load with 'none', what they were trained with.
 """
 from __future__ import annotations
 
@@ -47,6 +51,10 @@ class ModelConfig(BaseModel):
     shared_weights: bool = False
     batch_norm: bool = Field(True, description="BatchNorm after each conv (not in the seed's text; "
                              "makes training converge in a few epochs instead of tens)")
+    # measured (simulation only, 180 items, 4 seeds, time_mode 'active'): no gain over 'none' alone or with
+    # augmentation; the active crop already removes the activity's position. Kept off by default.
+    time_pool: Literal["none", "max", "mean"] = Field("none", description="pool the FEN's last feature map over "
+                                                      "time before flattening ('none': the seed's flatten)")
 
     @model_validator(mode="after")
     def _sizes(self) -> "ModelConfig":
@@ -64,7 +72,7 @@ class ModelConfig(BaseModel):
             act += 3 * c * h * w * 4  # conv (+ BatchNorm) output and the pooled map, float32
             h, w, c_in = h // 2, w // 2, c
         params *= 1 if self.shared_weights else self.n_branches
-        feats = c_in * h * w * (self.n_branches if self.fusion == "concat" else 1)
+        feats = c_in * h * (w if self.time_pool == "none" else 1) * (self.n_branches if self.fusion == "concat" else 1)
         params += feats * self.mlp_hidden + self.mlp_hidden + self.mlp_hidden * self.n_classes + self.n_classes
         if act * self.n_branches > MAX_ACTIVATION_BYTES:
             raise InputError(f"one input sample would need {act * self.n_branches / 2**20:.0f} MiB of activations, "
@@ -79,6 +87,20 @@ class ModelConfig(BaseModel):
         return sum(p.numel() for p in build_model(self).parameters())
 
 
+class TimePool(nn.Module):
+    """[B, C, V, T] -> [B, C, V]: max or mean over the time axis (the last)."""
+
+    def __init__(self, mode: str):
+        super().__init__()
+        self.mode = mode
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return x.amax(dim=-1) if self.mode == "max" else x.mean(dim=-1)
+
+    def extra_repr(self) -> str:
+        return self.mode
+
+
 class FEN(nn.Module):
     """Feature-extraction network of one radar: [B, 1, V, T] -> [B, features]."""
 
@@ -90,6 +112,8 @@ class FEN(nn.Module):
             layers += [nn.BatchNorm2d(c)] if cfg.batch_norm else []
             layers += [nn.ReLU(inplace=True), nn.MaxPool2d(2), nn.Dropout(cfg.fen_dropout)]
             c_in = c
+        if cfg.time_pool != "none":  # parameter-free, so the state-dict keys are those of 'none'
+            layers += [TimePool(cfg.time_pool)]
         self.net = nn.Sequential(*layers, nn.Flatten())
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:

@@ -8,6 +8,11 @@ settings and seed give the same weights. Threads: `torch.set_num_threads(threads
 a thread count chosen from the machine's load (`auto_threads`, the old default) made the result
 depend on what else was running. An explicit `threads` is recorded in the checkpoint's train_config.
 
+Augmentation (`TrainConfig.augment`, off by default): each *training* batch is transformed by
+`processing.classifier.augment.augment_batch` (random time shift, stretch, velocity scale, dB jitter) with
+the same private generator as the batch order, so runs stay deterministic; validation batches never are.
+The augmentation settings are part of `TrainConfig` and so of the checkpoint's train_config.
+
 Training stops with `TrainingError` (nothing is returned or saved) when the inputs hold non-finite
 values or the loss becomes non-finite (a learning rate far too high, or broken data).
 
@@ -24,6 +29,7 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
+from processing.classifier.augment import AugmentConfig, augment_batch
 from processing.classifier.checkpoint import CHECKPOINT_VERSION, load_checkpoint, save_checkpoint
 from processing.classifier.model import ModelConfig, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess_links
@@ -48,6 +54,8 @@ class TrainConfig(BaseModel):
     group_split: bool = Field(True, description="keep all copies of one motion source on one side")
     seed: int = Field(0, ge=0, le=2**32 - 1, description="random seed (scikit-learn's split takes 32 bits)")
     threads: int | None = Field(None, ge=1, le=256, description="torch CPU threads; None: DEFAULT_THREADS (1)")
+    # absent from checkpoints written before it existed: those trained without augmentation, the default
+    augment: AugmentConfig = Field(AugmentConfig(), description="random transforms of training batches (default off)")
 
 
 def auto_threads() -> int:
@@ -142,10 +150,13 @@ def _evaluate(model, x, y, batch_size, loss_fn):
 
 
 def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig = TrainConfig(), groups=None,
-          split: tuple[np.ndarray, np.ndarray] | None = None, progress: bool = True, log=print) -> TrainResult:
+          split: tuple[np.ndarray, np.ndarray] | None = None, progress: bool = True, log=print,
+          preprocess: PreprocessConfig | None = None) -> TrainResult:
     """Train on X [N, n_branches, V, T] / labels y [N] with an 80:20 stratified (grouped) split.
 
-    `split` overrides the split with explicit (train, validation) indices. The returned model carries
+    `split` overrides the split with explicit (train, validation) indices. `preprocess` is the configuration
+    that made X; augmentation (`cfg.augment`) needs it to convert its time shift to columns and for the dB
+    floor (None: the default `PreprocessConfig` at X's size). The returned model carries
     the weights of the epoch with the lowest validation loss (early stopping after `patience` epochs
     without improvement). History: per-epoch train/val loss and accuracy, and seconds per epoch.
     """
@@ -163,6 +174,11 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         raise TrainingError("training inputs hold non-finite values")
     if y.size and (y.min() < 0 or y.max() >= model_cfg.n_classes):
         raise TrainingError(f"labels must lie in 0..{model_cfg.n_classes - 1}, got {y.min()}..{y.max()}")
+    if preprocess is None:
+        preprocess = PreprocessConfig(n_velocity=model_cfg.input_size[0], n_time=model_cfg.input_size[1])
+    if cfg.augment.enabled and cfg.augment.db_floor >= preprocess.floor_db:
+        raise TrainingError(f"augment db_floor ({cfg.augment.db_floor:g} dB) must be less than the preprocessing's "
+                            f"floor_db ({preprocess.floor_db:g} dB)")
     setup_torch(cfg.seed, cfg.threads)
     t_start = time.perf_counter()
     try:
@@ -187,7 +203,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         for s in range(0, xt.shape[0], cfg.batch_size):
             b = order[s:s + cfg.batch_size]
             opt.zero_grad()
-            out = model(xt[b])
+            xb = augment_batch(xt[b], cfg.augment, gen, preprocess) if cfg.augment.enabled else xt[b]
+            out = model(xb)
             loss = loss_fn(out, yt[b])
             if not torch.isfinite(loss.detach()):
                 raise TrainingError(f"training diverged: the loss became {float(loss.detach())} at epoch {epoch} "
@@ -220,6 +237,6 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
                        seconds=time.perf_counter() - t_start)
 
 
-__all__ = ["CHECKPOINT_VERSION", "DEFAULT_THREADS", "TrainConfig", "TrainResult",
+__all__ = ["AugmentConfig", "CHECKPOINT_VERSION", "DEFAULT_THREADS", "TrainConfig", "TrainResult",
            "auto_threads", "dataset_arrays", "load_checkpoint", "save_checkpoint", "setup_torch",
            "split_indices", "train"]

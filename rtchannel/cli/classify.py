@@ -41,6 +41,9 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--shared-weights", action="store_true", help="one FEN for every radar")
     g.add_argument("--links", default="radar1,radar2", help="links (one FEN each), comma-separated; one link "
                    "gives the single-radar variant (default radar1,radar2)")
+    g.add_argument("--time-pool", choices=("none", "max", "mean"), default="none",
+                   help="pool each FEN's last feature map over time before flattening, so where an activity "
+                   "sits in the clip matters less (default none: the seed's flatten)")
     g = p.add_argument_group("training")
     g.add_argument("--epochs", type=int, default=40, help="maximum epochs (default 40)")
     g.add_argument("--patience", type=int, default=6, help="early-stopping patience in epochs (default 6)")
@@ -55,7 +58,45 @@ def _add_preprocess_model_args(p) -> None:
                    "matrix products; numpy/BLAS, the DSP and the data loading are not affected). "
                    "Default 1: weights are reproducible only at a fixed thread count (1 and 2 differ)")
     g.add_argument("--no-batch-norm", action="store_true", help="the literal seed FEN without BatchNorm")
+    g = p.add_argument_group("augmentation of training batches (recorded in the model's train_config)")
+    g.add_argument("--augment", action="store_true",
+                   help="random time shift (+-1 s), time stretch (x0.75-1.33), velocity scale (x0.8-1.25) and dB "
+                   "jitter (floor +-5 dB, offset +-2 dB), each applied with probability 0.5; any --aug-* option "
+                   "implies it")
+    g.add_argument("--aug-shift-s", type=float, metavar="S", help="maximum time shift either way [s] (default 1; "
+                   "time modes resample/active: an image taken as 6 s wide, see --aug-width-s; 0: no shift)")
+    g.add_argument("--aug-width-s", type=float, metavar="S", help="seconds an image of time mode resample/active "
+                   "is taken to span when converting --aug-shift-s to columns (default 6)")
+    g.add_argument("--aug-stretch", type=float, nargs=2, metavar=("LO", "HI"),
+                   help="time stretch factor range, >1 slower (default 0.75 1.333; 1 1: none)")
+    g.add_argument("--aug-vscale", type=float, nargs=2, metavar=("LO", "HI"),
+                   help="velocity scale factor range about 0 m/s (default 0.8 1.25; 1 1: none)")
+    g.add_argument("--aug-db", type=float, metavar="DB", help="the dB floor moved by up to +-DB [dB] "
+                   "(default 5; must be below --floor-db)")
+    g.add_argument("--aug-db-offset", type=float, metavar="DB", help="every pixel offset by up to +-DB [dB], "
+                   "then clipped (default 2)")
+    g.add_argument("--aug-p", type=float, metavar="P", help="probability of each transform per sample (default 0.5)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+_AUG_ARGS = {"aug_shift_s": "shift_s", "aug_width_s": "nominal_width_s", "aug_stretch": "stretch",
+             "aug_vscale": "vscale", "aug_db": "db_floor", "aug_db_offset": "db_offset", "aug_p": "p"}
+
+
+def _augment_config(args):
+    from pydantic import ValidationError
+
+    from processing.classifier.augment import AugmentConfig
+
+    given = {f: getattr(args, a) for a, f in _AUG_ARGS.items() if getattr(args, a, None) is not None}
+    if not given and not getattr(args, "augment", False):
+        return AugmentConfig()
+    try:
+        return AugmentConfig(on=True, **{f: tuple(v) if isinstance(v, list) else v for f, v in given.items()})
+    except ValidationError as e:
+        err = e.errors()[0]
+        name = next((a for a, f in _AUG_ARGS.items() if f in err.get("loc", ())), "augment")
+        raise _user_error()(f"--{name.replace('_', '-')}: {err.get('msg', 'invalid')}") from None
 
 
 def _configs(args):
@@ -68,10 +109,13 @@ def _configs(args):
                            floor_db=args.floor_db)
     model = ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links), input_size=tuple(args.size),
                         kernel_size=args.kernel, padding=args.padding, fusion=args.fusion,
-                        shared_weights=args.shared_weights, batch_norm=not args.no_batch_norm)
+                        shared_weights=args.shared_weights, batch_norm=not args.no_batch_norm,
+                        time_pool=args.time_pool)
     tc = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, patience=args.patience,
                      val_fraction=args.val_fraction, group_split=not args.no_group_split, seed=args.seed,
-                     threads=args.threads)
+                     threads=args.threads, augment=_augment_config(args))
+    if tc.augment.enabled and tc.augment.db_floor >= pre.floor_db:
+        raise _user_error()(f"--aug-db {tc.augment.db_floor:g} must be below --floor-db {pre.floor_db:g}")
     return links, pre, model, tc
 
 
@@ -94,7 +138,7 @@ def train_spec(spec: str, args, out: Path, log=print):
     log(f"{len(idx)} items from {spec} ({', '.join(f'{k}={v}' for k, v in zip(*np.unique([ACTIVITIES[i] for i in y], return_counts=True)))}); "
         f"loaded in {t_load:.1f} s")
     try:
-        res = train(x, y, mcfg, tcfg, groups=groups, progress=not args.quiet, log=log)
+        res = train(x, y, mcfg, tcfg, groups=groups, progress=not args.quiet, log=log, preprocess=pre)
     except ValueError as e:
         raise _user_error()(str(e)) from None
     clf = Classifier(model=res.model, preprocess=pre, classes=list(ACTIVITIES), links=links)
