@@ -9,6 +9,7 @@ from pydantic import ValidationError
 from rtchannel.cli import main
 from rtchannel.dataset.plan import Plan, derive_seed, expand, load_plan
 from rtchannel.radar import direction_angles
+from thirdparty import needs, registered
 
 REPO = Path(__file__).resolve().parents[1]
 BASE = {"name": "t", "seed": 3, "motion": {"sources": [{"procedural": "walk", "variants": 2,
@@ -101,11 +102,27 @@ def test_missing_motion_folder_and_bad_yaml_are_one_line(tmp_path, capsys):
     assert re.search(r"presets: [a-z, ]*\bseed\b", capsys.readouterr().err)
 
 
+SEED_TAKES = (registered("mocap/cmu/walk_daz/*.bvh") + registered("mocap/hdm05/pick/*") + registered("mocap/hdm05/asf/*")
+              + ["mocap/cmu/sit/75_17.bvh", "mocap/opencap/sit_stand/opencap_STS_sample_mocap.json"])
+
+
+def test_seed_preset_counts_without_its_motion_capture(capsys, monkeypatch, tmp_path):
+    """Counting a plan (--dry-run) never fetches: it works in a clone without the third-party takes."""
+    monkeypatch.setenv("RTCHANNEL_DATA_MIRROR", str(tmp_path / "no_mirror"))
+    monkeypatch.setenv("RTCHANNEL_DATA_CACHE", str(tmp_path / "empty_cache"))
+    assert main(["dataset", "--config", "seed", "--dry-run"]) == 0
+    assert "2808 items" in capsys.readouterr().out
+
+
+@needs(*SEED_TAKES)
 def test_seed_preset_reproduces_the_seed_structure(capsys):
     plan = load_plan("seed")
     items = expand(plan)
-    # the seed: 2826 pairs; the preset's arithmetic (26 motions x 3 heights x 18 x 2) gives 2808
+    # the seed: 2826 pairs; the preset's arithmetic (26 motion sources x 3 heights x 18 x 2) gives 2808
     assert len(items) == 26 * 3 * 18 * 2 == 2808
+    # real takes beside the generators for every activity but falls (issue 23)
+    real = {it.activity for it in items if it.motion["kind"] == "file"}
+    assert real == {"walk", "sit", "stand", "pick"}
     assert abs(len(items) - 2826) / 2826 < 0.01
     assert {it.activity for it in items} == {"fall", "walk", "stand", "sit", "pick"}
     assert sorted({it.direction for it in items}) == list(range(1, 19))
@@ -119,6 +136,7 @@ def test_seed_preset_reproduces_the_seed_structure(capsys):
     assert isinstance(Plan.model_json_schema(), dict)
 
 
+@needs(*SEED_TAKES)
 def test_sionna_subset_preset_holds_the_seed_motions():
     """The cross-test's Sionna subset must differ from the seed preset only in the physical and signal
     layers (6 of 18 directions, one gain set) and the backend: same motions, same radars per direction."""

@@ -44,7 +44,7 @@ def cmd_dataset(args) -> int:
     try:
         path = resolve_config(args.config)
         plan = load_plan(path, backend=args.backend)
-        items = expand(plan)
+        items = expand(plan, fetch=not args.dry_run)  # counting downloads nothing
     except ValidationError as e:
         raise UserError(validation_line(e, f"plan {args.config}")) from None
     except InputError as e:

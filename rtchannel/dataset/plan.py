@@ -154,7 +154,7 @@ def _registry_files(src: Source, fetch: bool) -> list[Path]:
     return [data_registry.fetch(p) for p in chosen]
 
 
-def skeleton_for(motion_file: Path, spec: str) -> Path:
+def skeleton_for(motion_file: Path, spec: str, fetch: bool = True) -> Path:
     """The ASF skeleton of an AMC `motion_file`: `spec` names the file, or a folder (``data:`` prefix or local)
     whose ASF with the longest name that starts the AMC's name is taken (HDM05: HDM_bd.asf for
     HDM_bd_depositFloorR_001_120.amc), so one source can hold several actors' takes."""
@@ -163,23 +163,24 @@ def skeleton_for(motion_file: Path, spec: str) -> Path:
 
         rels = [e.path for e in data_registry.entries(spec[len(DATA_PREFIX):]) if e.path.lower().endswith(".asf")]
         cands = {Path(r).stem: r for r in rels}
-        fetch = data_registry.fetch
+        get = data_registry.fetch if fetch else Path
     else:
         p = Path(spec)
         if p.is_file():
             return p
         cands = {q.stem: q for q in p.glob("*.asf")} if p.is_dir() else {}
-        fetch = Path
+        get = Path
     best = max((k for k in cands if motion_file.stem.lower().startswith(k.lower())), key=len, default=None)
     if best is None:
         raise ConfigError(f"motion file {motion_file.name}: no ASF skeleton in {spec} whose name starts its name")
-    return fetch(cands[best])
+    return get(cands[best])
 
 
-def _labelled_files(src: Source) -> list[tuple[Path, str]]:
+def _labelled_files(src: Source, fetch: bool = True) -> list[tuple[Path, str]]:
     """(local path, label) of each file of a `files` source; the label is the path below the folder or
-    registry prefix the source names (the file name for a single file)."""
-    files = _motion_files(src)
+    registry prefix the source names (the file name for a single file). Without `fetch`, registered files
+    keep their registry paths (nothing is downloaded)."""
+    files = _motion_files(src, fetch)
     if src.files.startswith(DATA_PREFIX):
         prefix = src.files[len(DATA_PREFIX):].rstrip("/")
         regs = _registry_files(src, fetch=False)
@@ -188,7 +189,7 @@ def _labelled_files(src: Source) -> list[tuple[Path, str]]:
     return [(f, f.name if root.is_file() else str(f.relative_to(root))) for f in files]
 
 
-def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
+def _motion_variants(plan: Plan, fetch: bool = True) -> list[tuple[str, str, str, str, dict]]:
     """(motion id, activity, group, source label, base motion dict) per source variant."""
     out = []
     for si, src in enumerate(plan.motion.sources):
@@ -209,14 +210,14 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
                 base = {"kind": "procedural", "activity": act, "params": {**params, "seed": gen_seed}}
                 out.append((f"{act}-{si:02d}-{v:04d}", act, f"procedural:{act}#{si}.{v}", f"procedural:{act}", base))
         else:
-            for v, (f, rel) in enumerate(_labelled_files(src)):
+            for v, (f, rel) in enumerate(_labelled_files(src, fetch)):
                 act = f.parent.name if src.activity == "from_folder" else src.activity
                 if act not in ACTIVITIES:
                     raise InputError(f"motion file {f}: folder name {act!r} is not an activity "
                                      f"({', '.join(ACTIVITIES)})")
                 options = dict(src.options)
                 if "skeleton" in options:
-                    options["skeleton"] = str(skeleton_for(f, options["skeleton"]))
+                    options["skeleton"] = str(skeleton_for(f, options["skeleton"], fetch))
                 base = {"kind": "file", "activity": act, "path": str(f), "options": options}
                 if src.trim is not None:
                     base["trim"] = list(src.trim)
@@ -224,9 +225,11 @@ def _motion_variants(plan: Plan) -> list[tuple[str, str, str, str, dict]]:
     return out
 
 
-def expand(plan: Plan) -> list[WorkItem]:
+def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
     """All work items of `plan`, sorted by item_id (deterministic). ConfigError first if the plan would
-    have no items or more than `plan_yaml.MAX_PLAN_ITEMS`, or a backend option is not a single value."""
+    have no items or more than `plan_yaml.MAX_PLAN_ITEMS`, or a backend option is not a single value.
+    `fetch` False: registered motion files are not downloaded and items name them by registry path (for
+    counting, e.g. ``dataset --dry-run``; such items cannot be run)."""
     check_backend_options(plan.backend_options, f"plan {plan.name!r}")  # a Plan built in code skips load_plan
     check_plan_options(plan, f"plan {plan.name!r}")
     count_items(plan, lambda s: len(_motion_files(s, fetch=False)), f"plan {plan.name!r}")
@@ -236,7 +239,7 @@ def expand(plan: Plan) -> list[WorkItem]:
     sig_axes = list(itertools.product(sg.gain_sets, sg.snr_db, sg.clutter))
     wm, wp, ws = (max(2, len(str(len(a) - 1))) for a in (motion_axes, phys_axes, sig_axes))
     items = []
-    for mid, act, group, source, base in _motion_variants(plan):
+    for mid, act, group, source, base in _motion_variants(plan, fetch):
         for mi, (h, ts, mir, hd, st) in enumerate(motion_axes):
             motion_id = f"{mid}-m{mi:0{wm}d}"
             rng = np.random.default_rng(derive_seed(plan.seed, "motion:" + motion_id))
