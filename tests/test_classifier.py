@@ -1,7 +1,6 @@
 """Activity classifier: preprocessing, metrics against scikit-learn, training on a small simulated dataset,
 checkpoint round trip, CLI train/evaluate/crossval and evaluation of .dat recordings."""
 import json
-import subprocess
 import sys
 
 import numpy as np
@@ -346,3 +345,27 @@ def test_checkpoint_unpacking_to_more_than_the_limit_is_refused_unread(tmp_path)
     assert p.stat().st_size < 5 << 20
     with pytest.raises(CheckpointError, match=r"bomb\.pt: 1100 MiB is larger than any valid checkpoint"):
         load_checkpoint(p)
+
+
+def test_window_centres_on_the_valid_motion_not_on_noise_columns():
+    """A 5 s recording (16 ms bins) with a 1 s activity at 0.5-1.5 s and noise elsewhere: a noise column's
+    p(v,t) is flat over v, which the motion measure reads as much motion (|v| averages a quarter of the
+    axis), so 3.5 s of noise pulled the 2 s window's centre to ~2.5 s and cut the activity out. With the
+    valid mask the window holds the whole activity."""
+    from processing.classifier.preprocess import _time_window
+
+    v = np.linspace(-6, 6, 64)
+    t = np.arange(312) * 0.016
+    act = (t >= 0.5) & (t < 1.5)
+    p = np.full((64, t.size), 1 / 64)
+    p[:, act] = 0.0
+    p[np.argmin(np.abs(v - 1.0)), act] = 1.0  # a 1 m/s line
+    cfg = PreprocessConfig(time_mode="window", window_s=2.0, n_time=64)
+    inside = _time_window(p, t, cfg, valid=act)
+    assert (inside.max(axis=0) == 1.0).sum() == act.sum() == 62  # every activity column inside the window
+    legacy = _time_window(p, t, cfg.model_copy(update={"window_valid_only": False}), valid=act)
+    assert (legacy.max(axis=0) == 1.0).sum() < 31  # noise-centred: most of the activity falls outside it
+    # old checkpoints keep what they were trained with
+    from processing.classifier.checkpoint import LEGACY_PREPROCESS
+
+    assert LEGACY_PREPROCESS["window_valid_only"] is False

@@ -11,8 +11,9 @@ one radar should accept another radar's recordings, so the input is built on *ph
    this is the identity up to a sub-bin shift. `v_range_mps=None` keeps the recorded span.
 2. Time: `time_mode="resample"` rebins the whole recording to `n_time` bins
    (the seed's "resized image"; activity durations are normalised away). `time_mode="window"` takes
-   a fixed `window_s` seconds centred on the recording's power centroid (zero-padded where the
-   recording is shorter), then rebins that to `n_time` bins, keeping absolute time scale.
+   a fixed `window_s` seconds centred on the recording's motion centroid (zero-padded where the
+   recording is shorter; with `window_valid_only` only valid, above-noise time bins count for the
+   centroid), then rebins that to `n_time` bins, keeping absolute time scale.
    `time_mode="active"` (default) first crops the recording to its active span (time bins whose motion, the
    p-weighted distance from zero velocity, exceeds `active_fraction` of its peak, plus `active_margin_s`
    either side), then rebins that: standing still before and after an activity (a 14 s mocap take that
@@ -54,6 +55,9 @@ class PreprocessConfig(BaseModel):
     # checkpoints written before this field existed load with False (see checkpoint.LEGACY_PREPROCESS)
     active_valid_only: bool = Field(True, description="time_mode='active': only valid (above-noise) time bins "
                                     "can be active, when the sample has a `valid` mask")
+    # checkpoints written before this field existed load with False (see checkpoint.LEGACY_PREPROCESS)
+    window_valid_only: bool = Field(True, description="time_mode='window': centre on the valid (above-noise) time "
+                                    "bins only, when the sample has a `valid` mask")
     # bounded like a motion (MAX_DURATION_S): the window is allocated as window_s / dt columns
     window_s: float = Field(6.0, gt=0, le=3600, description="time span of time_mode='window' [s]")
     scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
@@ -110,7 +114,8 @@ def _active_span(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfi
     return p_vt[:, max(0, on[0] - margin):on[-1] + margin + 1]
 
 
-def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig) -> np.ndarray:
+def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig,
+                 valid: np.ndarray | None = None) -> np.ndarray:
     t = p_vt.shape[1]
     dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
     n_win = max(1, int(round(cfg.window_s / dt))) if dt > 0 else 0
@@ -118,8 +123,13 @@ def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfi
         raise InputError(f"time_mode 'window': {cfg.window_s} s at a time step of {dt:g} s gives {n_win} bins "
                          f"(limit 1..{MAX_WINDOW_BINS}): is the time axis valid?")
     power = p_vt.sum(axis=0)
-    # centre on where the motion is: spread of the velocity distribution away from zero
+    # centre on where the motion is: spread of the velocity distribution away from zero. A noise-only column
+    # is spread evenly over v, so it looks like much motion; with normalised columns (power 1 each) a few
+    # seconds of noise outweighed the activity and the window followed them (a recording shifted by 1 s moved
+    # its window the other way), hence only valid columns count
     activity = _motion(p_vt) * power
+    if valid is not None and cfg.window_valid_only and (activity * valid).sum() > 0:
+        activity = activity * valid
     centre = int(round(np.average(np.arange(t), weights=activity))) if activity.sum() > 0 else t // 2
     start = centre - n_win // 2
     out = np.zeros((p_vt.shape[0], n_win), p_vt.dtype)
@@ -151,7 +161,7 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
             raise InputError(f"valid has {valid.size} time bins, p_vt {p.shape[1]}")
     p = _velocity_grid(p, velocity, cfg)
     if cfg.time_mode == "window":
-        p = _time_window(p, time, cfg)
+        p = _time_window(p, time, cfg, valid)
     elif cfg.time_mode == "active":
         p = _active_span(p, time, cfg, valid)
     p = _resample_axis(p, cfg.n_time, axis=1)

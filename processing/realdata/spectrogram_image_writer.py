@@ -157,9 +157,12 @@ def through_image(sig: Signature, layout: ImageLayout, duration_s: float | None 
 
     Like the Glasgow script (``linspace(0, duration, n)`` over the window centres), the window centres are
     stretched over 0..`duration_s` [s] (default: the layout's time axis, edge to edge) before drawing. The result's range
-    fields are empty (an image has none); `power` is the image's column power."""
+    fields are empty (an image has none); `power` is the image's column power; `valid` and mean velocity are
+    noise-aware exactly as for real images (`real_images.noise_aware`: columns 30 dB below the strongest one
+    are noise), so a classifier sees the same masks on both."""
     from dataclasses import replace
 
+    from processing.realdata.real_images import noise_aware
     from processing.realdata.spectrogram_image import read_spectrogram_image
 
     p = np.asarray(sig.p_vt, dtype=np.float64) * np.asarray(sig.power, dtype=np.float64)[None, :]
@@ -173,5 +176,5 @@ def through_image(sig: Signature, layout: ImageLayout, duration_s: float | None 
     rgb = np.empty((layout.height, layout.width, 3), np.uint8)
     rgb[...] = layout.background_rgb
     rgb[layout.box_top:layout.box_bottom + 1, layout.box_left:layout.box_right + 1] = box
-    out = read_spectrogram_image(rgb, layout, name="<simulated>").signature
+    out = noise_aware(read_spectrogram_image(rgb, layout, name="<simulated>").signature)
     return replace(out, range=np.zeros(0), range_distribution=np.zeros((0, out.time.size)))
