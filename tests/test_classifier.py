@@ -1,7 +1,6 @@
 """Activity classifier: preprocessing, metrics against scikit-learn, training on a small simulated dataset,
 checkpoint round trip, CLI train/evaluate/crossval and evaluation of .dat recordings."""
 import json
-import sys
 
 import numpy as np
 import pytest
