@@ -76,10 +76,12 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     walks = [it.motion for it in items if it.activity == "walk"]
     assert {m.get("walk_legs", 1) for m in walks} == {1, 2, 3, 4} and all(m["time_scale"] == 1.0 for m in walks)
     assert 0.3 < np.mean([abs(m["heading_deg"]) > 90 for m in walks]) < 0.7
-    others = [it.motion["time_scale"] for it in items if it.activity != "walk"]
+    assert all(it.motion["time_scale"] == 1.0 for it in items if it.activity == "fall")  # gravity's pace
+    others = [it.motion["time_scale"] for it in items if it.activity not in ("walk", "fall")]
     assert 0.625 <= min(others) < 0.7 and 1.6 < max(others) <= 1.667
-    # sit and stand get a chair on the mesh backends (the points backend is free space)
+    # sit and stand get a chair on the mesh backends (the points backend is free space), in a room drawn per motion
     assert all(it.chair == "auto" for it in items)
+    assert all(it.room.startswith("room:") for it in items) and len({it.room for it in items}) > 100
 
 
 @pytest.mark.parametrize("activity, kind", [("walk", "procedural"), ("walk", "file"), ("stand", "file")])

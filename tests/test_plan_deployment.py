@@ -60,7 +60,7 @@ def test_placement_draws_leave_every_other_draw_unchanged():
 
 
 def test_walk_legs_range_direction_and_own_pace():
-    items = expand(_plan(motion={"walk_legs": [1, 4], "walk_reverse": 1.0, "walk_time_scale": False}))
+    items = expand(_plan(motion={"walk_legs": [1, 4], "walk_reverse": 1.0, "unscaled": ["walk"]}))
     walks = {it.motion["key"]: it.motion for it in items if it.activity == "walk"}
     legs = [m.get("walk_legs", 1) for m in walks.values()]
     assert set(legs) <= {1, 2, 3, 4} and len(set(legs)) >= 2
@@ -130,3 +130,34 @@ def test_slow_walks_cover_their_distance_and_arm_swing_scales_the_swing():
     assert hips[-1] - hips[0] == pytest.approx(1.5, abs=0.01)
     full, weak = (generate("walk", speed=1.0, distance=2.0, seed=2, arm_swing=a) for a in (1.0, 0.3))
     assert 0.3 * wrist_swing(full) < wrist_swing(weak) < 0.65 * wrist_swing(full)
+
+
+def test_one_room_per_motion_holds_the_person_and_every_antenna():
+    from rtchannel.scene.rooms import room_bounds
+
+    items = expand(_plan(physical={"distance_m": [1.0, 5.0], "height_m": [0.5, 1.6],
+                                   "room": {"margin_m": [0.3, 2.0], "person_clear_m": 2.0}}))
+    rooms = {}
+    for it in items:
+        rooms.setdefault(it.motion["key"], set()).add(it.room)
+        x0, x1, y0, y1, h = room_bounds(it.room)
+        x, y, z = it.radar["links"][0]["tx"]
+        # every antenna at least the smallest margin (0.3 m, less the name's 1 cm rounding) inside every wall
+        assert min(x - x0, x1 - x, y - y0, y1 - y) >= 0.29 and h >= z + 0.5
+        assert min(-x0, x1, -y0, y1) >= 2.0 + 0.29  # the person's free floor
+    assert all(len(r) == 1 for r in rooms.values())  # the items of a motion share one mesh-backend run
+    assert len({next(iter(r)) for r in rooms.values()}) == len(rooms)  # rooms differ between motions
+    assert all(it.room is None for it in expand(_plan()))
+
+
+def test_an_item_in_its_drawn_room_simulates_on_the_mesh_backend():
+    """The facets backend traces the body in the item's generated room (walls at the drawn bounds)."""
+    from rtchannel.dataset.items import run_item
+
+    plan = _plan(physical={"distance_m": [2.0, 2.5], "room": {"margin_m": 0.5, "person_clear_m": 2.0,
+                                                               "height_m": 2.5}})
+    it = next(i for i in expand(plan.model_copy(update={"backend": "facets",
+                                                         "backend_options": {"lod": "2k"}})) if i.activity == "sit")
+    rec = run_item(it)
+    assert rec["entry"]["params"]["room"] == it.room and it.room.startswith("room:")
+    assert np.isfinite(rec["links"]["radar1"]["p_vt"]).all()

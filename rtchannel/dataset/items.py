@@ -107,10 +107,13 @@ class _Job:
         self.options = dict(item.backend_options)
         if item.backend == "points":
             self.options["gains"] = self.gains
-        elif item.chair != "none":  # mesh backends: furniture (the points backend is free space)
+        else:  # mesh backends: the drawn room and furniture (the points backend is free space)
             from rtchannel.scene.spec import Scene
 
-            self.options["scene"] = Scene.for_motion(self.motion, self.options.get("scene"), item.chair)
+            if item.room is not None:
+                self.options["scene"] = Scene(item.room)
+            if item.chair != "none":
+                self.options["scene"] = Scene.for_motion(self.motion, self.options.get("scene"), item.chair)
         self.signal_layer = item.snr_db is not None or item.clutter is not None
         self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
         self.clutter_info = {}
@@ -186,7 +189,7 @@ def shared_key(item: WorkItem) -> str:
     if item.backend == "points":  # per-item scatterer gains; the backend is ~1 % of the chain anyway
         return item.item_id
     return json.dumps([item.motion["key"], item.backend, item.backend_options, item.radar["waveform"],
-                       item.keep_iq], sort_keys=True, default=str)
+                       item.keep_iq, item.room], sort_keys=True, default=str)
 
 
 def run_shared(items: list[WorkItem]) -> list[dict]:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import itertools
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -102,6 +102,7 @@ class WorkItem:
     keep_iq: bool
     image_layout: str | None = None
     chair: str = "none"
+    room: str | None = None  # mesh backends: a generated box room (rtchannel.scene.rooms), drawn per motion
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -225,6 +226,18 @@ def _motion_variants(plan: Plan, fetch: bool = True) -> list[tuple[str, str, str
     return out
 
 
+def _antennas(items: list[WorkItem]) -> np.ndarray:
+    """World positions [N, 3] (m) of every transmitter and receiver of `items`, after their rotation."""
+    pts = []
+    for it in items:
+        a = np.radians(it.angle_deg)
+        rot = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        for link in it.radar["links"]:
+            pts += [rot @ np.asarray(link["tx"], float)] + ([rot @ np.asarray(link["rx"], float)] if link.get("rx")
+                                                            else [])
+    return np.array(pts)
+
+
 def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
     """All work items of `plan`, sorted by item_id (deterministic). ConfigError first if the plan would
     have no items or more than `plan_yaml.MAX_PLAN_ITEMS`, or a backend option is not a single value.
@@ -264,12 +277,13 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
             if ml.idle is not None:
                 idle = ml.idle.scaled(float(_draw(ml.idle_scale, rng)))
                 motion.update(idle=idle.model_dump(mode="json"), idle_seed=int(rng.integers(2 ** 31)))
-            if act == "walk":  # after every other draw: plans without these fields keep their motions
-                if ml.walk_reverse > 0 and rng.random() < ml.walk_reverse:
-                    motion.update(heading_deg=motion["heading_deg"] + 180.0)
-                if not ml.walk_time_scale:
-                    motion.update(time_scale=1.0)
+            # after every other draw: plans without these fields keep their motions
+            if act == "walk" and ml.walk_reverse > 0 and rng.random() < ml.walk_reverse:
+                motion.update(heading_deg=motion["heading_deg"] + 180.0)
+            if act in ml.unscaled:
+                motion.update(time_scale=1.0)
             drawn = (ph.downtilt_deg, ph.hpbw_el_deg, ph.distance_m, ph.height_m)
+            motion_items = []
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
                 links = ls.links
                 if any(x is not None for x in drawn):  # own stream: other draws unchanged
@@ -283,7 +297,7 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
                     radar["antenna"] = {**radar["antenna"], **ant}
                 for gi, (gs, snr, cl) in enumerate(sig_axes):
                     item_id = f"{motion_id}-p{pi:0{wp}d}-s{gi:0{ws}d}"
-                    items.append(WorkItem(
+                    motion_items.append(WorkItem(
                         item_id=item_id, seed=derive_seed(plan.seed, "item:" + item_id), activity=act,
                         group=group, source=source, motion=motion, radar=radar, angle_deg=float(angle),
                         direction=direction, link_set=ls.name, backend=plan.backend,
@@ -291,5 +305,10 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
                         snr_db=snr, clutter=None if cl is None else cl.model_dump(mode="json"),
                         keep_iq=plan.storage.keep_iq, image_layout=plan.storage.image_layout,
                         chair=plan.chair))
+            if ph.room is not None:  # one room for all items of a motion: they share one mesh-backend run
+                rng_room = np.random.default_rng(derive_seed(plan.seed, "room:" + motion_id))
+                room = ph.room.draw(_antennas(motion_items), rng_room)
+                motion_items = [replace(it, room=room) for it in motion_items]
+            items += motion_items
     items.sort(key=lambda it: it.item_id)
     return items

@@ -105,8 +105,9 @@ class MotionLayer(_Model):
                                              "joined by turns on the spot (rtchannel.motion.compose.back_and_forth)")
     walk_reverse: float = Field(0.0, ge=0, le=1, description="probability that a walk is turned 180 deg (starts "
                                 "walking away from where it would walk toward), drawn per motion")
-    walk_time_scale: bool = Field(True, description="apply time_scales to walks; false: a walk's pace is its "
-                                  "generator's speed (a slow walk takes shorter steps, it is not slow motion)")
+    unscaled: list[Literal[ACTIVITIES]] = Field(default_factory=list, description="activities time_scales do "
+                                                  "not apply to (e.g. walks, whose pace is their generator's "
+                                                  "speed, and falls, driven by gravity, not by the person's pace)")
     walk_turn_s: Scalar = Field(0.8, description="duration of one turn between walk legs [s] (or a range)")
     clip_s: dict[str, float] = Field(default_factory=dict, description="recording length [s] per activity ('*': "
                                      "any other): motions are padded with their first/last pose (split drawn "
@@ -223,6 +224,41 @@ def _seed_link_set() -> list[LinkSet]:
                                          Link(name="radar2", tx=(0.0, -3.0, 1.1))])]
 
 
+class RoomDraw(_Model):
+    """A box room drawn per motion for the mesh backends (`rtchannel.scene.rooms`): it holds the person's
+    spot with `person_clear_m` of free floor around it and every antenna of the motion's items, each wall a
+    drawn `margin_m` beyond the farthest of them; walls `height_m` high. The points backend ignores it."""
+
+    margin_m: Scalar = Field((0.3, 2.0), description="free space between a wall and the nearest antenna or the "
+                             "person's free floor [m] (value or [low, high] drawn per wall)")
+    person_clear_m: float = Field(2.0, ge=0.5, le=20, description="free floor around the person's spot [m] "
+                                  "(a fall reaches ~1.3 h from where it starts)")
+    height_m: Scalar = Field((2.4, 3.2), description="wall height [m] (value or [low, high])")
+
+    @field_validator("margin_m")
+    @classmethod
+    def _margin(cls, v):
+        return _within(v, 0.3, 20.0, "room.margin_m", " m")
+
+    @field_validator("height_m")
+    @classmethod
+    def _wall_height(cls, v):
+        return _within(v, 1.8, 20.0, "room.height_m", " m")
+
+    def draw(self, antennas: np.ndarray, rng) -> str:
+        """The room's scene name (``room:...``) around the person's spot (origin) and `antennas` [N, 3] (m)."""
+        from rtchannel.scene.rooms import room_name
+
+        pts = np.vstack([np.asarray(antennas, float)[:, :2], [[-self.person_clear_m, -self.person_clear_m],
+                                                              [self.person_clear_m, self.person_clear_m]]])
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        m = [float(rng.uniform(*self.margin_m)) if isinstance(self.margin_m, tuple) else float(self.margin_m)
+             for _ in range(4)]
+        h = float(rng.uniform(*self.height_m)) if isinstance(self.height_m, tuple) else float(self.height_m)
+        h = max(h, float(np.max(np.asarray(antennas, float)[:, 2])) + 0.5)  # walls above the antennas
+        return room_name(lo[0] - m[0], hi[0] + m[1], lo[1] - m[2], hi[1] + m[3], h)
+
+
 class PhysicalLayer(_Model):
     """Physical-layer augmentation: directions (rotations of all antennas about z), waveforms, link sets."""
 
@@ -246,6 +282,8 @@ class PhysicalLayer(_Model):
         "azimuths are kept. None: the link sets' positions")
     height_m: Scalar | None = Field(None, description="height of every antenna above the floor [m] (value or "
                                     "[low, high] drawn per item), 0.1..5. None: the link sets' heights")
+    room: RoomDraw | None = Field(None, description="mesh backends: a box room drawn per motion around the "
+                                  "person and its items' antennas (None: the backend's scene option)")
 
     @field_validator("distance_m")
     @classmethod

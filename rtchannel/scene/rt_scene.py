@@ -69,6 +69,10 @@ def resolve_scene(scene) -> Path:
     raises ValueError if missing."""
     if hasattr(scene, "xml_path"):
         return scene.xml_path()
+    from rtchannel.scene.rooms import is_room_name, room_xml_path
+
+    if is_room_name(scene):
+        return room_xml_path(scene)
     path = SCENES.get(str(scene), Path(scene))
     if not path.is_file():
         raise InputError(f"scene '{scene}' is neither one of {', '.join(SCENES)} nor an existing XML file")

@@ -21,7 +21,8 @@ class Scene:
 
     Args:
         source: "room" (8 x 8 m concrete room with floor and 3 m walls, `scenes/room.xml`), "free_space"
-            (nothing but the body) or the path of a Mitsuba 3 XML file whose shapes carry radio
+            (nothing but the body), a box room of any size "room:X0,X1,Y0,Y1,H" (m, `rtchannel.scene.rooms`)
+            or the path of a Mitsuba 3 XML file whose shapes carry radio
             materials (see `scenes/README.md`).
         furniture: static pieces added to the source (`rtchannel.scene.furniture.Furniture`).
     """
@@ -87,8 +88,11 @@ class Scene:
 
     def base_xml_path(self) -> Path:
         """The source's scene file, without furniture; raises ValueError if it does not exist."""
+        from rtchannel.scene.rooms import is_room_name, room_xml_path
         from rtchannel.scene.rt_scene import SCENES
 
+        if is_room_name(self.source):
+            return room_xml_path(self.source)
         path = SCENES.get(str(self.source), Path(self.source))
         if not path.is_file():
             raise InputError(f"scene '{self.source}' is neither one of {', '.join(SCENES)} nor an existing XML file")
@@ -108,7 +112,8 @@ class Scene:
     @property
     def name(self) -> str:
         """Short name for reports: the preset name or the file name, with "+chair" etc. for furniture."""
-        base = str(self.source) if str(self.source) in ("room", "free_space") else Path(self.source).name
+        base = str(self.source) if str(self.source) in ("room", "free_space") or str(self.source).startswith(
+            "room:") else Path(self.source).name
         return base + "".join(f"+{f.label}" for f in self.furniture)
 
     def describe(self) -> dict:
