@@ -11,7 +11,7 @@ from processing.io.dataset_store import ACTIVITIES
 from rtchannel.cli import main
 
 NO_GEO = dict(shift_s=0.0, stretch=(1.0, 1.0), vscale=(1.0, 1.0))
-NO_DB = dict(db_floor=0.0, db_offset=0.0)
+NO_DB = dict(db_floor=0.0, db_offset=0.0, noise_db=None)
 
 
 def _image(b=2, c=2, v=32, t=40, seed=0):
@@ -87,7 +87,7 @@ def test_identity_when_disabled_and_config_checks():
     assert torch.equal(g.get_state(), state)  # nothing drawn when off
     # p = 1 with identity transforms except a zero-range one: unchanged values
     same = augment_batch(x, AugmentConfig(on=True, p=1.0, shift_s=0.0, stretch=(1, 1), vscale=(1, 1),
-                                          db_floor=0.0, db_offset=1e-9), g, pre)
+                                          db_floor=0.0, db_offset=1e-9, noise_db=None), g, pre)
     torch.testing.assert_close(same, x, atol=1e-6, rtol=0)
     for bad in (dict(stretch=(1.2, 0.9)), dict(vscale=(0.1, 1.0)), dict(p=1.5), dict(shift_s=-1), dict(foo=1)):
         with pytest.raises(ValueError):
@@ -113,7 +113,7 @@ def test_deterministic_for_a_seed_and_values_stay_in_range(scale):
 def test_db_jitter_is_a_gain_and_offset_of_the_db_scale():
     x = torch.linspace(0, 1, 41).reshape(1, 1, 1, 41).repeat(4, 1, 8, 1)
     pre = PreprocessConfig(n_velocity=8, n_time=41, floor_db=40.0)
-    out = augment_batch(x, AugmentConfig(on=True, p=1.0, **NO_GEO, db_floor=5.0, db_offset=0.0),
+    out = augment_batch(x, AugmentConfig(on=True, p=1.0, **NO_GEO, db_floor=5.0, db_offset=0.0, noise_db=None),
                         torch.Generator().manual_seed(1), pre)
     gains = []
     for i in range(4):  # value' = 1 - (1 - value) g, g = 40 / (40 + d), d in +-5 dB; then clipped to [0, 1]
@@ -219,3 +219,22 @@ def test_time_pool_forward_and_old_checkpoints_load(tmp_path, pool):
     assert again.model.cfg.time_pool == "none" and again.model.cfg == base
     x = np.random.default_rng(1).random((4, 2, 16, 16), dtype=np.float32)
     np.testing.assert_array_equal(again.predict_proba(x), clf.predict_proba(x))
+
+
+def test_receiver_noise_sits_at_the_drawn_level_with_exponential_speckle():
+    """One peak pixel on an empty (floor) image, noise at -20 dB re the peak added in linear power: the
+    background's mean power is 0.01 of the peak (+-5 %: 4096 exponential samples have a 1.6 % standard error)
+    and its median ln(2) = 0.69 of that (an exponential's median); samples not drawn stay untouched."""
+    from processing.classifier.augment import add_noise
+
+    pre = PreprocessConfig()
+    x = torch.zeros(2, 1, 64, 64)
+    x[:, 0, 32, 32] = 1.0
+    speckle = -torch.log1p(-torch.rand(x.shape, generator=torch.Generator().manual_seed(1)))
+    out = add_noise(x, torch.tensor([True, False]), torch.tensor([-20.0, -20.0]), speckle, pre)
+    power = 10 ** ((out[0, 0] - 1) * pre.floor_db / 10)
+    background = power.flatten()[torch.arange(64 * 64) != 32 * 64 + 32]
+    peak = 1 + 0.01 * float(speckle[0, 0, 32, 32])  # the renormalisation divides by the noisy peak
+    assert float(background.mean()) * peak == pytest.approx(0.01, rel=0.05)
+    assert float(background.median()) * peak == pytest.approx(0.01 * np.log(2), rel=0.1)
+    assert torch.equal(out[1], x[1]) and torch.isfinite(out).all()

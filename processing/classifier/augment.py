@@ -79,8 +79,16 @@ class AugmentConfig(BaseModel):
     db_offset: float = Field(2.0, ge=0, le=100, description="offset of every pixel by up to +- this [dB] "
                              "(peak-normalisation error; clipped to [0, 1] afterwards)")
 
+    # receiver noise made visible: the body's SNR falls by 28 dB from 1 to 5 m (R^4) and with the radar's
+    # gain, so a recording's noise may sit anywhere from far below the display's 40 dB span to well inside it;
+    # a periodogram's noise is exponentially distributed per pixel (chi-square, 2 degrees of freedom)
+    noise_db: _RANGE | None = Field((-40.0, -20.0), description="receiver-noise level range [dB re the sample's "
+                                    "peak pixel] (lo, hi), uniform; exponential speckle per pixel; None: off")
+
     @model_validator(mode="after")
     def _ranges(self) -> "AugmentConfig":
+        if self.noise_db is not None and not -120 <= self.noise_db[0] <= self.noise_db[1] <= 0:
+            raise InputError(f"augment noise_db must be a range -120 <= lo <= hi <= 0 dB, got {self.noise_db}")
         for name in ("stretch", "vscale"):
             lo, hi = getattr(self, name)
             if not 0.25 <= lo <= hi <= 4.0:
@@ -90,7 +98,7 @@ class AugmentConfig(BaseModel):
     @property
     def enabled(self) -> bool:
         """True when a training batch would actually change (on, p > 0 and some transform not the identity)."""
-        return self.on and self.p > 0 and (self.shift_s > 0 or self.stretch != (1.0, 1.0)
+        return self.on and self.p > 0 and (self.shift_s > 0 or self.stretch != (1.0, 1.0) or self.noise_db is not None
                                            or self.vscale != (1.0, 1.0) or self.db_floor > 0 or self.db_offset > 0)
 
     def max_shift_columns(self, preprocess_cfg: PreprocessConfig) -> float:
@@ -167,7 +175,32 @@ def augment_batch(x: torch.Tensor, cfg: AugmentConfig, generator: torch.Generato
                 out = 1 - (1 - out) * g + o / floor
             else:
                 out = out.clamp(min=0) ** g * 10 ** (o / 10)
+        # always drawn (the same number of draws whatever the settings): a flag, a level and the speckle
+        noisy = torch.rand(b, generator=generator) < cfg.p
+        level_u = torch.rand(b, generator=generator, dtype=torch.float64)
+        speckle = -torch.log1p(-torch.rand(out.shape, generator=generator)).clamp(max=50.0)  # Exp(1)
+        if cfg.noise_db is not None and bool(noisy.any()):
+            out = add_noise(out, noisy, cfg.noise_db[0] + level_u * (cfg.noise_db[1] - cfg.noise_db[0]), speckle,
+                            preprocess_cfg)
         return out.clamp(0.0, 1.0).to(x.dtype)
 
 
-__all__ = ["AugmentConfig", "augment_batch", "noise_floor_columns", "resample"]
+def add_noise(x: torch.Tensor, which: torch.Tensor, level_db: torch.Tensor, speckle: torch.Tensor,
+              preprocess_cfg: PreprocessConfig) -> torch.Tensor:
+    """x [B, C, V, T] (values in [0, 1] on the preprocessing's scale) with receiver noise added to the samples
+    `which` [B]: power level_db [B] (dB re the peak pixel) times `speckle` [B, C, V, T] (mean 1) added in the
+    linear power domain, the result renormalised to its peak and mapped back to the scale."""
+    floor = preprocess_cfg.floor_db
+    if preprocess_cfg.scale == "db":
+        power = torch.where(x > 0, 10 ** ((x - 1) * floor / 10), torch.zeros_like(x))  # 0: below the floor
+    else:
+        power = x.clamp(min=0)
+    noise = (10 ** (level_db.float() / 10))[:, None, None, None] * speckle
+    p = torch.where(which[:, None, None, None], power + noise, power)
+    p = p / p.amax(dim=(1, 2, 3), keepdim=True).clamp(min=1e-30)
+    if preprocess_cfg.scale == "linear":
+        return p
+    return 1 + 10 * torch.log10(p.clamp(min=10 ** (-floor / 10))) / floor
+
+
+__all__ = ["AugmentConfig", "add_noise", "augment_batch", "noise_floor_columns", "resample"]

@@ -60,9 +60,9 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--no-batch-norm", action="store_true", help="the literal seed FEN without BatchNorm")
     g = p.add_argument_group("augmentation of training batches (recorded in the model's train_config)")
     g.add_argument("--augment", action="store_true",
-                   help="random time shift (+-1 s), time stretch (x0.75-1.33), velocity scale (x0.8-1.25) and dB "
-                   "jitter (floor +-5 dB, offset +-2 dB), each applied with probability 0.5; any --aug-* option "
-                   "implies it")
+                   help="random time shift (+-1 s), time stretch (x0.75-1.33), velocity scale (x0.8-1.25), dB "
+                   "jitter (floor +-5 dB, offset +-2 dB) and receiver noise (-40..-20 dB re the peak), each applied "
+                   "with probability 0.5; any --aug-* option implies it")
     g.add_argument("--aug-shift-s", type=float, metavar="S", help="maximum time shift either way [s] (default 1; "
                    "time modes resample/active: an image taken as 6 s wide, see --aug-width-s; 0: no shift)")
     g.add_argument("--aug-width-s", type=float, metavar="S", help="seconds an image of time mode resample/active "
@@ -76,11 +76,14 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--aug-db-offset", type=float, metavar="DB", help="every pixel offset by up to +-DB [dB], "
                    "then clipped (default 2)")
     g.add_argument("--aug-p", type=float, metavar="P", help="probability of each transform per sample (default 0.5)")
+    g.add_argument("--aug-noise-db", type=float, nargs=2, metavar=("LO", "HI"), help="receiver-noise level range "
+                   "[dB re the peak pixel], exponential speckle per pixel (default -40 -20)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
 _AUG_ARGS = {"aug_shift_s": "shift_s", "aug_width_s": "nominal_width_s", "aug_stretch": "stretch",
-             "aug_vscale": "vscale", "aug_db": "db_floor", "aug_db_offset": "db_offset", "aug_p": "p"}
+             "aug_vscale": "vscale", "aug_db": "db_floor", "aug_db_offset": "db_offset", "aug_p": "p",
+             "aug_noise_db": "noise_db"}
 
 
 def _augment_config(args):
