@@ -3,7 +3,7 @@ its bounds, ``room:X0,X1,Y0,Y1,H`` (metres; floor at z = 0), written as a Mitsub
 
 Why: real deployments are homes and labs of several sizes, with the radar near one wall or in the middle,
 and the walls' multipath and static clutter move with them. A dataset plan draws one room per motion
-(`rtchannel.dataset.plan_schema.RoomDraw`) around the person and every antenna; the name is stored with the
+(`rtchannel.dataset.plan_physical.RoomDraw`) around the person and every antenna; the name is stored with the
 item, so the scene is rebuilt exactly from it. The file goes to the scene cache, named by its content.
 """
 from __future__ import annotations
