@@ -237,18 +237,24 @@ def _recording_inputs(clf, args):
     return clf.inputs(keep), np.asarray(y), names
 
 
-def _evaluate_images(clf, args, out: Path) -> int:
-    from processing.classifier.images import evaluate_images, write_image_evaluation
+def load_images(args):
+    """(images, unreadable, title) of `args.images` filtered by --labels/--people (warnings for unreadable ones)."""
     from processing.realdata.real_images import load_real_images, parse_people, read_labels_csv
 
     labels = read_labels_csv(args.labels) if args.labels is not None else None
-    people = parse_people(args.people)
-    t0 = time.perf_counter()
-    images, bad = load_real_images(args.images, labels=labels, people=people)
-    for name, why in bad:
+    images, bad = load_real_images(args.images, labels=labels, people=parse_people(args.people))
+    for _name, why in bad:
         print(f"warning: skipping unreadable image {why}")
-    ev = evaluate_images(clf, images, bad)
     title = f"{args.model.name} on images {args.images}" + (f" (people {args.people})" if args.people else "")
+    return images, bad, title
+
+
+def _evaluate_images(clf, args, out: Path) -> int:
+    from processing.classifier.images import evaluate_images, write_image_evaluation
+
+    t0 = time.perf_counter()
+    images, bad, title = load_images(args)
+    ev = evaluate_images(clf, images, bad)
     files = write_image_evaluation(ev, out, title, extra={"people": args.people, "seconds": time.perf_counter() - t0})
     print(f"{title}:\n{ev.summary()}")
     print("wrote " + ", ".join(str(f) for f in files))

@@ -41,25 +41,15 @@ def cmd_robustness(args) -> int:
     from processing.atomic import write_text_atomic
     from processing.classifier.perturb import DEFAULT_GRID, QUICK_GRID, robustness_grid
     from processing.plots.robustness import plot_robustness
-    from processing.realdata.real_images import (
-        load_real_images,
-        parse_people,
-        read_labels_csv,
-    )
-    from rtchannel.cli.classify import _load_model
+    from rtchannel.cli.classify import _load_model, load_images
 
     clf = _load_model(args.model)
     out = args.out or args.model.with_name(args.model.stem + "_robustness")
     check_output(out, "dir")
-    labels = read_labels_csv(args.labels) if args.labels is not None else None
-    people = parse_people(args.people)
     t0 = time.perf_counter()
-    images, bad = load_real_images(args.images, labels=labels, people=people)
-    for _name, why in bad:
-        print(f"warning: skipping unreadable image {why}")
+    images, _bad, title = load_images(args)
     grid = QUICK_GRID if args.quick else DEFAULT_GRID
     rows = robustness_grid(clf, images, grid, progress=not args.quiet)
-    title = f"{args.model.name} on images {args.images}" + (f" (people {args.people})" if args.people else "")
     md = _markdown(rows)
     files = [write_text_atomic(out / "robustness.csv", _csv(rows)),
              write_text_atomic(out / "robustness.md", f"# Robustness: {title}\n\n{md}"),
