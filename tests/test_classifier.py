@@ -368,3 +368,31 @@ def test_window_centres_on_the_valid_motion_not_on_noise_columns():
     from processing.classifier.checkpoint import LEGACY_PREPROCESS
 
     assert LEGACY_PREPROCESS["window_valid_only"] is False
+
+
+def test_window_weighs_motion_by_column_power_when_noise_passes_the_valid_mask():
+    """The same recording seen with a noise floor only 25 dB under the activity (a weaker radar or a farther
+    person): every column passes the valid threshold, and only the columns' power tells noise from motion."""
+    from processing.classifier.preprocess import _time_window
+
+    v = np.linspace(-6, 6, 64)
+    t = np.arange(312) * 0.016
+    act = (t >= 0.5) & (t < 1.5)
+    p = np.full((64, t.size), 1 / 64)
+    p[:, act] = 0.0
+    p[np.argmin(np.abs(v - 1.0)), act] = 1.0
+    power = np.where(act, 1.0, 10 ** -2.5)
+    cfg = PreprocessConfig(time_mode="window", window_s=2.0, n_time=64)
+    valid = np.ones(t.size, bool)
+    kept = _time_window(p, t, cfg, valid=valid, power=power)
+    assert (kept.max(axis=0) == 1.0).sum() == act.sum()
+    unweighted = _time_window(p, t, cfg.model_copy(update={"window_power": False}), valid=valid, power=power)
+    assert (unweighted.max(axis=0) == 1.0).sum() < 31
+    # the full pipeline reads `power` from the sample, as it reads `valid`
+    from processing.classifier.preprocess import preprocess_links
+
+    sample = {"r": {"p_vt": p, "velocity": v, "time": t, "valid": valid, "power": power}}
+    x = preprocess_links(sample, ["r"], cfg)
+    assert x.shape == (1, 64, 64) and np.isfinite(x).all()
+    with pytest.raises(ValueError, match="power has 3 time bins"):
+        preprocess_links({"r": {**sample["r"], "power": np.ones(3)}}, ["r"], cfg)

@@ -27,7 +27,7 @@ CHECKPOINT_VERSION = 1
 MAX_CHECKPOINT_BYTES = 1 << 30  # the largest allowed network (5e7 float32 parameters) is 0.2 GB
 # Preprocessing fields added after checkpoints were already written, with the value that reproduces what
 # those models were trained on (a missing field must not silently switch an old model to new behaviour).
-LEGACY_PREPROCESS = {"active_valid_only": False, "window_valid_only": False}
+LEGACY_PREPROCESS = {"active_valid_only": False, "window_valid_only": False, "window_power": False}
 _REQUIRED = {"version": int, "model_config": dict, "preprocess": dict, "classes": list, "links": list,
              "state_dict": dict}
 

@@ -38,7 +38,7 @@ def image_inputs(clf, images: list[RealImage]) -> np.ndarray:
                              f"({', '.join(clf.links)}): use a single-radar model (train --links radar1)")
     link = clf.links[0]
     samples = [{link: {"p_vt": im.signature.p_vt, "velocity": im.signature.velocity, "time": im.signature.time,
-                       "valid": im.signature.valid}} for im in images]
+                       "valid": im.signature.valid, "power": im.signature.power}} for im in images]
     return clf.inputs(samples) if samples else np.zeros((0, 1, clf.preprocess.n_velocity, clf.preprocess.n_time),
                                                          np.float32)
 

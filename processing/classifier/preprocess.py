@@ -13,7 +13,8 @@ one radar should accept another radar's recordings, so the input is built on *ph
    (the seed's "resized image"; activity durations are normalised away). `time_mode="window"` takes
    a fixed `window_s` seconds centred on the recording's motion centroid (zero-padded where the
    recording is shorter; with `window_valid_only` only valid, above-noise time bins count for the
-   centroid), then rebins that to `n_time` bins, keeping absolute time scale.
+   centroid, with `window_power` each weighted by its power), then rebins that to `n_time` bins, keeping
+   absolute time scale.
    `time_mode="active"` (default) first crops the recording to its active span (time bins whose motion, the
    p-weighted distance from zero velocity, exceeds `active_fraction` of its peak, plus `active_margin_s`
    either side), then rebins that: standing still before and after an activity (a 14 s mocap take that
@@ -58,6 +59,9 @@ class PreprocessConfig(BaseModel):
     # checkpoints written before this field existed load with False (see checkpoint.LEGACY_PREPROCESS)
     window_valid_only: bool = Field(True, description="time_mode='window': centre on the valid (above-noise) time "
                                     "bins only, when the sample has a `valid` mask")
+    # checkpoints written before this field existed load with False (see checkpoint.LEGACY_PREPROCESS)
+    window_power: bool = Field(True, description="time_mode='window': weight each time bin's motion by its power "
+                               "when the sample has a column `power` (the power centroid of the motion)")
     # bounded like a motion (MAX_DURATION_S): the window is allocated as window_s / dt columns
     window_s: float = Field(6.0, gt=0, le=3600, description="time span of time_mode='window' [s]")
     scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
@@ -115,21 +119,25 @@ def _active_span(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfi
 
 
 def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig,
-                 valid: np.ndarray | None = None) -> np.ndarray:
+                 valid: np.ndarray | None = None, power: np.ndarray | None = None) -> np.ndarray:
     t = p_vt.shape[1]
     dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
     n_win = max(1, int(round(cfg.window_s / dt))) if dt > 0 else 0
     if not 1 <= n_win <= MAX_WINDOW_BINS:  # a corrupt time axis (dt ~ 0 or negative) must not allocate
         raise InputError(f"time_mode 'window': {cfg.window_s} s at a time step of {dt:g} s gives {n_win} bins "
                          f"(limit 1..{MAX_WINDOW_BINS}): is the time axis valid?")
-    power = p_vt.sum(axis=0)
+    mass = p_vt.sum(axis=0)  # 1 per column for normalised p(v,t), less where the velocity grid cuts it
     # centre on where the motion is: spread of the velocity distribution away from zero. A noise-only column
     # is spread evenly over v, so it looks like much motion; with normalised columns (power 1 each) a few
     # seconds of noise outweighed the activity and the window followed them (a recording shifted by 1 s moved
     # its window the other way), hence only valid columns count
-    activity = _motion(p_vt) * power
+    activity = _motion(p_vt) * mass
     if valid is not None and cfg.window_valid_only and (activity * valid).sum() > 0:
         activity = activity * valid
+    # and weighted by the column power: with a higher noise floor (a weaker radar, a person farther away) noise
+    # columns pass the valid threshold, and by motion alone they would outweigh the activity again
+    if power is not None and cfg.window_power and (activity * power).sum() > 0:
+        activity = activity * power
     centre = int(round(np.average(np.arange(t), weights=activity))) if activity.sum() > 0 else t // 2
     start = centre - n_win // 2
     out = np.zeros((p_vt.shape[0], n_win), p_vt.dtype)
@@ -140,7 +148,8 @@ def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfi
 
 
 def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.ndarray | None = None,
-               cfg: PreprocessConfig = PreprocessConfig(), valid: np.ndarray | None = None) -> np.ndarray:
+               cfg: PreprocessConfig = PreprocessConfig(), valid: np.ndarray | None = None,
+               power: np.ndarray | None = None) -> np.ndarray:
     """One fixed-size input image [n_velocity, n_time] (float32, values in [0, 1]) from p(v,t) [V, T].
 
     Args:
@@ -150,6 +159,8 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
         cfg: the preprocessing settings.
         valid: [T] bool, time bins carrying signal above the noise (`Signature.valid`); with
             `cfg.active_valid_only` only these can be active. None: every bin may be.
+        power: [T] column power (`Signature.power`, any scale); with `cfg.window_power` it weights the
+            window's centroid. None: unweighted.
     """
     p = np.nan_to_num(np.asarray(p_vt, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     if p.ndim != 2 or p.shape[1] == 0:
@@ -159,9 +170,14 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
         valid = np.asarray(valid, dtype=bool).reshape(-1)
         if valid.size != p.shape[1]:
             raise InputError(f"valid has {valid.size} time bins, p_vt {p.shape[1]}")
+    if power is not None:
+        power = np.nan_to_num(np.asarray(power, dtype=np.float64).reshape(-1), nan=0.0, posinf=0.0, neginf=0.0)
+        if power.size != p.shape[1]:
+            raise InputError(f"power has {power.size} time bins, p_vt {p.shape[1]}")
+        power = np.maximum(power, 0.0)
     p = _velocity_grid(p, velocity, cfg)
     if cfg.time_mode == "window":
-        p = _time_window(p, time, cfg, valid)
+        p = _time_window(p, time, cfg, valid, power)
     elif cfg.time_mode == "active":
         p = _active_span(p, time, cfg, valid)
     p = _resample_axis(p, cfg.n_time, axis=1)
@@ -175,10 +191,11 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
 
 
 def preprocess_links(links: dict[str, dict], names, cfg: PreprocessConfig) -> np.ndarray:
-    """Stacked inputs [len(names), n_velocity, n_time] from {link: {"p_vt", "velocity", "time", ("valid")}}."""
+    """Stacked inputs [len(names), n_velocity, n_time] from {link: {"p_vt", "velocity", "time", ("valid",
+    "power")}}."""
     missing = [n for n in names if n not in links]
     if missing:
         raise InputError(f"sample has no link {missing[0]!r} (has {', '.join(links)})")
     return np.stack([preprocess(links[n]["p_vt"], links[n].get("velocity"), links[n].get("time"), cfg,
-                                links[n].get("valid"))
+                                links[n].get("valid"), links[n].get("power"))
                      for n in names])
