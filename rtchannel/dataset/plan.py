@@ -282,18 +282,18 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
                 motion.update(heading_deg=motion["heading_deg"] + 180.0)
             if act in ml.unscaled:
                 motion.update(time_scale=1.0)
-            drawn = (ph.downtilt_deg, ph.hpbw_el_deg, ph.distance_m, ph.height_m)
+            draws_physical = any(x is not None for x in (ph.downtilt_deg, ph.hpbw_el_deg, ph.distance_m, ph.height_m))
             motion_items = []
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
-                links = ls.links
-                if any(x is not None for x in drawn):  # own stream: other draws unchanged
+                links, ant = ls.links, {}
+                if draws_physical:  # own stream: other draws unchanged
                     arng = np.random.default_rng(derive_seed(plan.seed, f"antenna:{motion_id}-p{pi}"))
                     ant = {key: float(_draw(getattr(ph, key), arng))
                            for key in ("downtilt_deg", "hpbw_el_deg") if getattr(ph, key) is not None}
                     links = ph.placed(links, act, arng)
                 radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
                          "links": [link.model_dump(mode="json") for link in links], **ph.kit(links)}
-                if any(x is not None for x in drawn) and ant:
+                if ant:
                     radar["antenna"] = {**radar["antenna"], **ant}
                 for gi, (gs, snr, cl) in enumerate(sig_axes):
                     item_id = f"{motion_id}-p{pi:0{wp}d}-s{gi:0{ws}d}"
