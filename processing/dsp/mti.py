@@ -95,15 +95,9 @@ def mti_filter(x: np.ndarray, prf_hz: float, carrier_hz: float, cfg) -> np.ndarr
         return x - x.mean(axis=0, keepdims=True)
     fc = cutoff_hz(cfg, carrier_hz)
     _check_cutoff(fc, prf_hz)
-    x = np.asarray(x, dtype=np.complex128)
     if kind == "moving_average":
-        half = moving_average_length(fc, prf_hz) // 2
-        # sum over [n - half, n + half] clipped to the record, divided by the number of chirps in it
-        c = np.concatenate([np.zeros((1,) + x.shape[1:], x.dtype), np.cumsum(x, axis=0)])
-        n = np.arange(x.shape[0])
-        lo, hi = np.maximum(n - half, 0), np.minimum(n + half + 1, x.shape[0])
-        count = (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
-        return x - (c[hi] - c[lo]) / count
+        return _subtract_moving_average(np.asarray(x), moving_average_length(fc, prf_hz) // 2)
+    x = np.asarray(x, dtype=np.complex128)
     from scipy.signal import sosfilt, sosfilt_zi, sosfiltfilt
 
     sos = butterworth_sos(cfg.mti_order, fc, prf_hz)
@@ -114,6 +108,30 @@ def mti_filter(x: np.ndarray, prf_hz: float, carrier_hz: float, cfg) -> np.ndarr
         return sosfilt(sos, x, axis=0)
     zi = sosfilt_zi(sos).reshape((sos.shape[0], 2) + (1,) * (x.ndim - 1)) * x[0][None, None]
     return sosfilt(sos, x, axis=0, zi=zi)[0]
+
+
+def _subtract_moving_average(x: np.ndarray, half: int) -> np.ndarray:
+    """x [C, ...] minus its centred moving average over [n - half, n + half] clipped to the record (divided by
+    the number of chirps in it), from a running sum, in complex128. Interior rows as one slice difference, in
+    place, x cast element by element: fewer [C, ...] temporaries (each MB-sized one costs page faults) than
+    converting x and gathering both window ends for every row (same arithmetic, same bytes)."""
+    n_c = x.shape[0]
+    c = np.empty((n_c + 1,) + x.shape[1:], np.complex128)
+    c[0] = 0
+    np.cumsum(x, axis=0, dtype=np.complex128, out=c[1:])
+    out = np.empty(x.shape, np.complex128)
+    a, b = min(half, n_c), max(n_c - half - 1, min(half, n_c))  # rows a..b-1 see the whole window
+    if b > a:
+        mid = out[a:b]
+        np.subtract(c[a + half + 1:b + half + 1], c[a - half:b - half], out=mid)
+        mid /= 2 * half + 1
+        np.subtract(x[a:b], mid, out=mid)
+    edge = np.r_[0:a, b:n_c]
+    if edge.size:
+        lo, hi = np.maximum(edge - half, 0), np.minimum(edge + half + 1, n_c)
+        count = (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
+        out[edge] = x[edge] - (c[hi] - c[lo]) / count
+    return out
 
 
 def settling_time_s(cfg, prf_hz: float, carrier_hz: float, level_db: float = -40.0) -> float:

@@ -42,7 +42,7 @@ import scipy.fft
 from processing.synthesis.kernel import DEGREE, OVERSAMPLE, SpreadKernel, spread_kernel
 
 __all__ = ["OVERSAMPLE", "SpreadKernel", "fold", "grid_cells", "grid_to_iq", "gridded_tone_sum", "prepare_frames",
-           "project_rows", "projection_matrix", "spread", "spread_kernel"]
+           "projection_matrix", "spread", "spread_kernel"]
 
 BLOCK = 256  # paths processed together (state and moments stay in L1/L2)
 # fast-math without "nnan"/"ninf": reassociation and contraction let the loops vectorise, while NaN tests
@@ -420,32 +420,3 @@ def gridded_tone_sum(t, knots, y0, y1, m0, m1, g0, g1, start_hz: float, slope: f
     kernel = spread_kernel() if kernel is None else kernel
     grid = spread(t, knots, y0, y1, m0, m1, g0, g1, start_hz, slope, fs, n_samples, kernel)
     return grid_to_iq(grid, n_samples, kernel)
-
-
-@numba.njit(parallel=True, cache=True, fastmath=FASTMATH)
-def _rows_times(x, wr, wi, out):  # pragma: no cover - jitted
-    """out[C, 2K] (re, im adjacent) = x[C, 2N] (re, im adjacent; float32 or float64) @ (wr + j wi) [N, K]."""
-    n_k = wr.shape[1]
-    for c in numba.prange(x.shape[0]):
-        acc_r = np.zeros(n_k)
-        acc_i = np.zeros(n_k)
-        for n in range(wr.shape[0]):
-            xr, xi = float(x[c, 2 * n]), float(x[c, 2 * n + 1])
-            for k in range(n_k):
-                acc_r[k] += xr * wr[n, k] - xi * wi[n, k]
-                acc_i[k] += xr * wi[n, k] + xi * wr[n, k]
-        for k in range(n_k):
-            out[c, 2 * k] = acc_r[k]
-            out[c, 2 * k + 1] = acc_i[k]
-
-
-def project_rows(x: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """x [C, N] @ weights [N, K] (complex128 result) accumulated in float64 without BLAS (whose threads fight
-    numba's for the cores)."""
-    x = np.ascontiguousarray(x)
-    out = np.zeros((x.shape[0], weights.shape[1]), np.complex128)
-    if x.size:
-        real = x.view(np.float32 if x.dtype == np.complex64 else np.float64)
-        w = np.asarray(weights, np.complex128)
-        _rows_times(real, np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag), out.view(np.float64))
-    return out
