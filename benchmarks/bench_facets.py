@@ -4,8 +4,13 @@ speed knobs (trace_fps, walls, LOD, gain threshold). Goal: <= 1 s wall at the de
 
 The walk is `rtchannel.analysis.chain_bench.exact_duration_walk(5.0)`: hips from x = -3 m to 1.3 m along y = 0 (the
 same motion as the chain benchmark), 1.7 m short of Radar 1.
-Run: .venv/bin/python benchmarks/bench_facets.py [--repeats 3] [--quick]
-The machine is shared: timings are noisy; medians over repeats are reported.
+Run: .venv/bin/python benchmarks/bench_facets.py [--repeats 3] [--quick] [--cpu]
+The machine is shared: timings are noisy; medians over repeats are reported. With --cpu every stage is timed
+in process CPU time (all threads) instead of wall time, which other load disturbs far less; prefix
+NUMBA_NUM_THREADS=1 for the dataset workers' serial kernels. Issue 26 (shared static clutter work, fused ray
+set-up, twins and skinning compiled) took the default row's backend CPU time with serial kernels from 1.09-1.15 s to
+0.69 s on a loaded 2-core machine (rays 0.32 -> 0.19, gains 0.35 -> 0.29, clutter 0.13-0.21 -> 0.05, skinning
+0.10 -> 0.03 s).
 """
 import argparse
 import json
@@ -19,7 +24,7 @@ from rtchannel.scene.rt_scene import get_scene
 
 FULL = {"trace_fps": None, "image_lod": None, "min_relative_gain_db": None}  # full accuracy
 SETTINGS = [
-    {"lod": "10k", "walls": True},  # the defaults: trace_fps 10, image_lod 2k, -40 dB
+    {"lod": "10k", "walls": True},  # the defaults: trace_fps 10, image_lod 2k, -50 dB
     {"lod": "10k", "walls": True, **FULL},
     {"lod": "10k", "walls": True, **FULL, "trace_fps": 10.0},
     {"lod": "10k", "walls": True, "trace_fps": 10.0, "image_lod": None},
@@ -55,7 +60,10 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="only the default setting")
     ap.add_argument("--skip-full-rate", action="store_true", help="skip the slow full-accuracy setting")
+    ap.add_argument("--cpu", action="store_true", help="time stages in process CPU time, not wall time")
     args = ap.parse_args()
+    if args.cpu:  # the backend's stage clocks read time.perf_counter
+        time.perf_counter = time.process_time
     settings = SETTINGS[:1] if args.quick else [s for s in SETTINGS if s.get("image_lod", 1) is not None
                                                 or s.get("trace_fps", 1) is not None] if args.skip_full_rate else SETTINGS
     for setting in settings:

@@ -20,6 +20,9 @@ import numpy as np
 from processing.errors import InputError
 
 
+_CHECK_BLOCK = 1 << 15  # elements per block of the value checks (~0.5 MB of complex gains)
+
+
 @dataclass
 class PathSet:
     """Paths of one radar link.
@@ -59,13 +62,29 @@ class PathSet:
                 raise InputError("PathSet delay_rates must have the shape of delays")
         if k >= 2 and not np.all(np.diff(self.times) > 0):
             raise InputError("PathSet times must be strictly increasing")
-        present = self.gains != 0
-        if not np.all(np.isfinite(self.gains)):
-            raise InputError(f"PathSet for link '{self.link}' has NaN/inf gains")
-        if np.any(present & ~np.isfinite(self.delays)):
-            raise InputError(f"PathSet for link '{self.link}' has a path with a gain but no finite delay")
-        if np.any(self.delays[present] < 0):
-            raise InputError(f"PathSet for link '{self.link}' has negative delays")
+        if not self._values_ok():
+            present = self.gains != 0
+            if not np.all(np.isfinite(self.gains)):
+                raise InputError(f"PathSet for link '{self.link}' has NaN/inf gains")
+            if np.any(present & ~np.isfinite(self.delays)):
+                raise InputError(f"PathSet for link '{self.link}' has a path with a gain but no finite delay")
+            if np.any(self.delays[present] < 0):
+                raise InputError(f"PathSet for link '{self.link}' has negative delays")
+
+    def _values_ok(self) -> bool:
+        """Whether every gain is finite and every present path (gain != 0) has a finite delay >= 0, checked
+        in blocks of rows that stay in cache (the arrays of a facet path set are tens of MB; the checks
+        above, which name the problem, run only when this finds one)."""
+        k, p = self.delays.shape
+        rows = max(1, _CHECK_BLOCK // max(1, p))
+        for r in range(0, k, rows):
+            g, d = self.gains[r:r + rows], self.delays[r:r + rows]
+            parts = g.view(np.float64) if g.strides[-1] == g.itemsize else g  # complex: finite iff both parts are
+            if not np.isfinite(parts).all():
+                return False
+            if np.any((g != 0) & ~((d >= 0) & (d < np.inf))):  # NaN fails >= 0, inf fails < inf
+                return False
+        return True
 
     @property
     def n_frames(self) -> int:

@@ -19,13 +19,13 @@ DSP can resolve, and the patches of one delay cell (1/16 of a range bin) are mer
 """
 from __future__ import annotations
 
+import copy
 import math
 import weakref
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-
-from scipy import sparse
 
 from processing.dsp.fast_time import max_range
 from processing.pathset import PathSet
@@ -150,7 +150,7 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
             between them.
         seed: seed of the patches' fixed diffuse phases.
     """
-    from rtchannel.backends.visibility import _STOP, caster_for
+    from rtchannel.backends.visibility import caster_for
 
     wf = radar.waveform
     patches = scene_patches(rt_scene, wf.carrier_hz, patch_size_m(wf.range_resolution))
@@ -166,58 +166,169 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
                  else np.asarray(body_vertices, float))
         faces = np.array([[0, 1, 2]]) if body_faces is None else np.asarray(body_faces)
         caster = caster_for(rt_scene, faces, verts, antennas, batch_frames)
-        dirs, dists = [], []
-        for pos in antennas:
-            d = patches.centroids - pos
-            dist = np.linalg.norm(d, axis=1)
-            dirs.append(d / dist[:, None])
-            dists.append(dist - _STOP)
-        for s0 in range(0, len(verts), batch_frames):  # one BVH build per batch, every antenna's rays
-            chunk = verts[s0:s0 + batch_frames]
-            caster.load(chunk)
-            cells = np.repeat(np.arange(len(chunk)), k_n)
-            for a, pos in enumerate(antennas):
-                hit = caster.occluded_cells(np.broadcast_to(pos, (len(cells), 3)), np.tile(dirs[a], (len(chunk), 1)),
-                                            np.tile(dists[a], len(chunk)), cells)
-                free[a, s0:s0 + len(chunk)] = ~hit.reshape(len(chunk), k_n)
-        if body_vertices is None:
-            free = np.broadcast_to(free[:, :1], (len(antennas), len(trace_idx), k_n))
+        rays = [_patch_rays(pos, patches) for pos in antennas]
+        n_slots = 1 if body_vertices is None else min(len(verts), caster.batch)
+        open_ = [_static_free(caster, pos, patches, *r, n_slots) for pos, r in zip(antennas, rays)]
+        if body_vertices is None:  # the degenerate stand-in hides nothing: the static answer of cell 0
+            free = np.broadcast_to(np.stack([o[0] for o in open_])[:, None], (len(antennas), len(trace_idx), k_n))
+        else:
+            for s0 in range(0, len(verts), batch_frames):  # one BVH build per batch, only rays near the body
+                chunk = verts[s0:s0 + batch_frames]
+                slots = np.arange(len(chunk))
+                free[:, s0:s0 + len(chunk)] = [o[slots] for o in open_]
+                # a segment missing the body's box (plus a margin far above float32 rounding) cannot meet it
+                lo, hi = chunk.min(axis=1) - _BOX_MARGIN, chunk.max(axis=1) + _BOX_MARGIN
+                near = [_near_box(pos, patches.centroids, o[slots], lo, hi) for pos, o in zip(antennas, open_)]
+                if not any(n.any() for n in near):
+                    continue
+                caster.load(chunk)
+                for a, ((dirs, dists), n) in enumerate(zip(rays, near)):
+                    b, k = np.nonzero(n)
+                    if b.size:
+                        hit = caster.occluded_cells(np.broadcast_to(antennas[a], (b.size, 3)), dirs[k], dists[k], b)
+                        free[a, s0 + b, k] = ~hit
     index = {tuple(p): i for i, p in enumerate(antennas)}
+    # interpolation from traced to all frames: linear fade, as the facets' own gains
+    if len(trace_idx) == f_n:
+        j = j1 = np.arange(f_n)
+        w = np.zeros(f_n)
+        fade = False
+    else:
+        j = np.clip(np.searchsorted(trace_idx, np.arange(f_n), side="right") - 1, 0, max(len(trace_idx) - 2, 0))
+        j1 = np.minimum(j + 1, len(trace_idx) - 1)
+        span = np.where(j1 > j, trace_idx[j1] - trace_idx[j], 1)
+        w = np.clip((np.arange(f_n) - trace_idx[j]) / span, 0.0, 1.0)
+        fade = True
+    out = {}
+    for lk in radar.links:
+        keep, inverse, cells, tau_c, w_k = _link_cells(rt_scene, radar, lk, patches, seed)
+        vis_t = free[index[tuple(lk.tx_pos)]] & free[index[tuple(lk.rx_pos)]]  # [T, K]
+        gains = np.zeros((f_n, len(tau_c)), complex)
+        _cell_sums(np.ascontiguousarray(vis_t[:, keep]), inverse, w_k, j, j1, w, fade, gains)
+        out[lk.name] = PathSet(times=np.asarray(times, float), delays=np.broadcast_to(tau_c, (f_n, len(tau_c))).copy(),
+                               gains=gains, ids=CLUTTER_ID_BASE + cells,
+                               delay_rates=np.zeros((f_n, len(tau_c))), link=lk.name)
+    return out
+
+
+_BOX_MARGIN = 0.01  # m: Embree's float32 rays and triangles stray ~1e-5 m at room coordinates
+
+
+def _cell_step(wf) -> float:
+    return 1.0 / (CELLS_PER_RANGE_BIN * wf.bandwidth_hz)
+
+
+def _patch_rays(pos, patches: Patches):
+    """Unit directions [K, 3] and lengths [K] (stopping short of the patch) of the rays antenna -> patch."""
+    from rtchannel.backends.visibility import _STOP
+
+    d = patches.centroids - pos
+    dist = np.linalg.norm(d, axis=1)
+    return d / dist[:, None], dist - _STOP
+
+
+def _static_free(caster, pos, patches: Patches, dirs, dists, n_slots: int) -> np.ndarray:
+    """[batch, K] rays antenna -> patch free of the static geometry in each cell of `caster` (cells differ
+    in float32 rounding, so each gets its own answer), valid in the first `n_slots` cells; cast once per
+    caster, antenna, patch set and cell (walls never move). Where the body is in the scene too, a ray is
+    blocked iff static geometry or the body blocks it (any-hit), so the body's rays need casting only where
+    this is free."""
+    cache = caster.__dict__.setdefault("clutter_static", {})
+    key = (np.asarray(pos, float).tobytes(), id(patches))
+    got = cache.get(key)
+    if got is None or got[0] is not patches:
+        if len(cache) >= _STATIC_KEPT:
+            cache.pop(next(iter(cache)))
+        got = cache[key] = (patches, np.ones((caster.batch, len(dists)), bool), np.zeros(caster.batch, bool))
+    _, free, done = got
+    todo = np.flatnonzero(~done[:n_slots])
+    if todo.size:
+        k_n = len(dists)
+        cells = np.repeat(todo, k_n)
+        caster.clear()
+        occ = caster.occluded_cells(np.broadcast_to(pos, (cells.size, 3)), np.tile(dirs, (todo.size, 1)),
+                                    np.tile(dists, todo.size), cells)
+        free[todo] = ~occ.reshape(todo.size, k_n)
+        done[todo] = True
+    return free
+
+
+_STATIC_KEPT = 64  # antenna positions per caster (~0.15 MB each for a room)
+
+
+@numba.njit(cache=True)
+def _near_box(pos, cent, open_, lo, hi):
+    """[B, K] open segments pos -> cent[k] that meet the box lo[b]..hi[b] (slab test)."""
+    n_b, n_k = open_.shape
+    out = np.zeros((n_b, n_k), np.bool_)
+    for b in range(n_b):
+        for k in range(n_k):
+            if not open_[b, k]:
+                continue
+            t0, t1 = 0.0, 1.0
+            for i in range(3):
+                d = cent[k, i] - pos[i]
+                if d == 0.0:
+                    if pos[i] < lo[b, i] or pos[i] > hi[b, i]:
+                        t0 = 2.0
+                    continue
+                a, c = (lo[b, i] - pos[i]) / d, (hi[b, i] - pos[i]) / d
+                t0, t1 = max(t0, min(a, c)), min(t1, max(a, c))
+            out[b, k] = t0 <= t1
+    return out
+
+
+@numba.njit(parallel=True, cache=True)
+def _cell_sums(vis_t, inverse, w_k, j, j1, w, fade, out):
+    """out[f, c] = sum over kept patches i of cell c of vis(f, i) w_k[i], vis faded linearly between traced
+    frames j[f], j1[f] with weight w[f] (the sparse product's order and arithmetic)."""
+    for f in numba.prange(out.shape[0]):
+        for i in range(w_k.shape[0]):
+            if fade:
+                v = (1 - w[f]) * vis_t[j[f], i] + w[f] * vis_t[j1[f], i]
+            else:
+                v = 1.0 if vis_t[f, i] else 0.0
+            if v != 0.0:
+                out[f, inverse[i]] += w_k[i] * v
+
+
+_LINKS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_LINKS_KEPT = 32  # links per scene: a dataset worker's radars come back sample after sample
+
+
+def _link_cells(rt_scene, radar, lk, patches: Patches, seed):
+    """(kept patches [N], their cell [N], cell indices [C], cell delays [C] (s), weights [N] complex) of one link: the static
+    part of its clutter (gains with antennas, delays, cells), cached per scene, radar, link and seed."""
+    mine = _LINKS.setdefault(rt_scene, {})
+    dump = getattr(radar, "model_dump_json", None)  # every radar setting (antennas, DSP ranges, waveform)
+    key = None if dump is None else (dump(), lk.name, seed, id(patches))
+    got = mine.get(key)
+    if got is not None and got[0] is patches:
+        return got[1]
+    wf = radar.waveform
     # clutter outside the ranges the DSP processes (plus two bins of range-FFT leakage) cannot reach it
     lo = max(radar.dsp.min_range_m - 2 * wf.range_resolution, 0.0)
     hi = max_range(wf, radar.dsp) + 2 * wf.range_resolution
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    out = {}
-    for lk in radar.links:
-        ft, fr = free[index[tuple(lk.tx_pos)]], free[index[tuple(lk.rx_pos)]]
-        vis_t = (ft & fr).astype(float)  # [T, K]
-        if len(trace_idx) == f_n:
-            vis = vis_t
-        else:  # linear fade between traced frames, as the facets' own gains
-            j = np.clip(np.searchsorted(trace_idx, np.arange(f_n), side="right") - 1, 0, max(len(trace_idx) - 2, 0))
-            j1 = np.minimum(j + 1, len(trace_idx) - 1)
-            span = np.where(j1 > j, trace_idx[j1] - trace_idx[j], 1)
-            w = np.clip((np.arange(f_n) - trace_idx[j]) / span, 0.0, 1.0)[:, None]
-            vis = (1 - w) * vis_t[j] + w * vis_t[j1]
-        g = clutter_gains(patches, lk.tx_pos, lk.rx_pos, wf.wavelength, wf.carrier_hz, seed)
-        g = g * radar.link_gain(lk, patches.centroids)
-        tau_all = bistatic_delay(patches.centroids, lk.tx_pos, lk.rx_pos)
-        keep = np.flatnonzero((g != 0) & (np.abs(tau_all * C0 / 2 - mid) <= half))  # within the processed ranges
-        tau = tau_all[keep]
-        # patches in one delay cell of 1/(16 B) become one path at the cell's delay, each carrying its phase
-        # offset at the band centre: exact in slow time (the shadows included), in fast time off by at most
-        # pi B / (16 B) / 2 = 0.1 rad at the chirp's ends (1/32 of a range bin of smear)
-        step = 1.0 / (CELLS_PER_RANGE_BIN * wf.bandwidth_hz)
-        cell = np.round(tau / step).astype(np.int64)
-        cells, inverse = np.unique(cell, return_inverse=True)
-        tau_c = cells * step
-        w_k = g[keep] * np.exp(2j * np.pi * wf.carrier_hz * (tau - tau_c[inverse]))
-        to_cells = sparse.csr_matrix((w_k, (np.arange(keep.size), inverse)), shape=(keep.size, len(cells)))
-        gains = np.asarray((to_cells.T @ vis[:, keep].T).T)  # [F, C]: sum over each cell's patches of vis x w
-        out[lk.name] = PathSet(times=np.asarray(times, float), delays=np.broadcast_to(tau_c, (f_n, len(cells))).copy(),
-                               gains=gains, ids=CLUTTER_ID_BASE + cells, delay_rates=np.zeros((f_n, len(cells))),
-                               link=lk.name)
-    return out
+    g = clutter_gains(patches, lk.tx_pos, lk.rx_pos, wf.wavelength, wf.carrier_hz, seed)
+    g = g * radar.link_gain(lk, patches.centroids)
+    tau_all = bistatic_delay(patches.centroids, lk.tx_pos, lk.rx_pos)
+    keep = np.flatnonzero((g != 0) & (np.abs(tau_all * C0 / 2 - mid) <= half))  # within the processed ranges
+    tau = tau_all[keep]
+    # patches in one delay cell of 1/(16 B) become one path at the cell's delay, each carrying its phase
+    # offset at the band centre: exact in slow time (the shadows included), in fast time off by at most
+    # pi B / (16 B) / 2 = 0.1 rad at the chirp's ends (1/32 of a range bin of smear)
+    step = _cell_step(wf)
+    cell = np.round(tau / step).astype(np.int64)
+    cells, inverse = np.unique(cell, return_inverse=True)
+    tau_c = cells * step
+    w_k = g[keep] * np.exp(2j * np.pi * wf.carrier_hz * (tau - tau_c[inverse]))
+    value = (keep, inverse.ravel().astype(np.int64), cells, tau_c, w_k)
+    if key is not None:
+        if len(mine) >= _LINKS_KEPT:
+            mine.pop(next(iter(mine)))
+        mine[key] = (patches, value)
+    return value
 
 
 def merged(a: PathSet, b: PathSet) -> PathSet:
@@ -226,9 +337,14 @@ def merged(a: PathSet, b: PathSet) -> PathSet:
     if a.delay_rates is not None or b.delay_rates is not None:
         rates = np.concatenate([np.zeros_like(a.delays) if a.delay_rates is None else a.delay_rates,
                                 np.zeros_like(b.delays) if b.delay_rates is None else b.delay_rates], axis=1)
-    return PathSet(times=a.times, delays=np.concatenate([a.delays, b.delays], axis=1),
-                   gains=np.concatenate([a.gains, b.gains], axis=1), ids=np.concatenate([a.ids, b.ids]),
-                   delay_rates=rates, link=a.link)
+    if a.delays.shape[0] != b.delays.shape[0] or not np.array_equal(a.times, b.times):
+        raise ValueError("merged path sets must share their frame times")
+    # Both parts passed PathSet's checks, which hold element by element, so their union does too: a copy of
+    # `a` takes the joined arrays without checking tens of MB again.
+    out = copy.copy(a)
+    out.delays, out.gains = np.concatenate([a.delays, b.delays], axis=1), np.concatenate([a.gains, b.gains], axis=1)
+    out.ids, out.delay_rates = np.concatenate([a.ids, b.ids]), rates
+    return out
 
 
 __all__ = ["WALL_ROUGHNESS_M", "Patches", "patch_size_m", "scene_patches", "clutter_gains", "clutter_paths",

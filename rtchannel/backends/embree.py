@@ -18,6 +18,7 @@ import ctypes
 import os
 import threading
 
+import numba
 import numpy as np
 
 _P, _U, _S, _I = ctypes.c_void_p, ctypes.c_uint, ctypes.c_size_t, ctypes.c_int
@@ -97,6 +98,49 @@ def _self_test() -> bool:
         return False
 
 
+def new_rays(n: int) -> np.ndarray:
+    """[n, 12] float32 RTCRay records: zero (tnear, time, flags, id) with every geometry's mask set; the caller
+    fills org (0:3), dir (4:7) and tfar (8)."""
+    rays = np.zeros((n, _RAY_FLOATS), np.float32)
+    rays.view(np.uint32)[:, 9] = 0xFFFFFFFF  # mask: every geometry
+    return rays
+
+
+@numba.njit(cache=True, inline="always")
+def _ray_one(i, sx, sy, sz, ex, ey, ez, stop, o, rays, bits, valid):
+    """Ray record i of the segment s -> e shifted by o, stopping `stop` short: the arithmetic of
+    `visibility`'s numpy route (d = e - s, |d| summed as einsum does, d / |d|, then float32 through
+    `EmbreeScene.occluded`), so the rays are the same bit for bit (tests/test_facet_speed_kernels.py)."""
+    d0, d1, d2 = ex - sx, ey - sy, ez - sz
+    dist = np.sqrt((d0 * d0 + d2 * d2) + d1 * d1)  # numpy's einsum order (two lanes)
+    den = dist if dist > 0 else 1.0
+    t = dist - stop
+    rays[i, 0], rays[i, 1], rays[i, 2], rays[i, 3] = sx + o[0], sy + o[1], sz + o[2], 0.0
+    rays[i, 4], rays[i, 5], rays[i, 6], rays[i, 7] = d0 / den, d1 / den, d2 / den, 0.0
+    rays[i, 8] = max(t, 0.0)
+    bits[i, 9], bits[i, 10], bits[i, 11] = 0xFFFFFFFF, 0, 0
+    valid[i] = t > 0
+
+
+@numba.njit(cache=True)
+def pack_rays(points, index, end, stop, cells, offsets, rays, bits, valid):
+    """Embree ray records [N, 12] (float32 `rays`, its uint32 view `bits`) of segments start -> end [N, 3],
+    start = points[index[i]] (or points[i] without index), shifted into cell offsets[cells[i]] and stopping
+    stop[i] (or stop[0]) short; valid[i]: a positive length remains."""
+    for i in range(end.shape[0]):
+        j = index[i] if index.shape[0] else i
+        _ray_one(i, points[j, 0], points[j, 1], points[j, 2], end[i, 0], end[i, 1], end[i, 2],
+                 stop[i] if stop.shape[0] > 1 else stop[0], offsets[cells[i]], rays, bits, valid)
+
+
+@numba.njit(cache=True)
+def pack_direct(sources, s_idx, centroids, b, f, stop, offsets, rays, bits, valid):
+    """`pack_rays` of the segments sources[s_idx] -> centroids[b, f] in cells b (read in place)."""
+    for i in range(b.shape[0]):
+        p, c = sources[s_idx[i]], centroids[b[i], f[i]]
+        _ray_one(i, p[0], p[1], p[2], c[0], c[1], c[2], stop, offsets[b[i]], rays, bits, valid)
+
+
 def available() -> bool:
     """Whether Mitsuba's Embree library can be called directly."""
     return _load() is not None
@@ -156,13 +200,19 @@ class EmbreeScene:
         n = len(origins)
         if n == 0:
             return np.zeros(0, bool)
-        if not self._committed:
-            self.set_body(self._body_v[:-1].reshape(-1, 3))
-        rays = np.zeros((n, _RAY_FLOATS), np.float32)
+        rays = new_rays(n)
         rays[:, 0:3] = origins
         rays[:, 4:7] = directions
         rays[:, 8] = np.maximum(max_t, 0.0)
-        rays.view(np.uint32)[:, 9] = 0xFFFFFFFF  # mask: every geometry
+        return self.occluded_rays(rays)
+
+    def occluded_rays(self, rays: np.ndarray) -> np.ndarray:
+        """Any-hit test [N] bool of rays already laid out as Embree's RTCRay (`new_rays`, filled in place)."""
+        n = len(rays)
+        if n == 0:
+            return np.zeros(0, bool)
+        if not self._committed:
+            self.set_body(self._body_v[:-1].reshape(-1, 3))
         # RTCIntersectContext: flags (0 = incoherent), filter pointer (null), instID[1] = invalid; padded.
         ctx = np.zeros(8, np.uint32)
         ctx[4] = 0xFFFFFFFF

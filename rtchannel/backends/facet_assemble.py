@@ -52,7 +52,9 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
     for (s_tx, s_rx), pattern in zip(pairs, antennas):
         tx, rx = sources[s_tx], sources[s_rx]
         mono = s_tx == s_rx
-        fams = []  # (kind, b, f, p_a, p_b, [(wall, cos_w, antenna)], monostatic twin to add)
+        # (kind, b, f, p_a, p_b, [(wall, (source, wall index), rows of vis.images[source, wall] or None for
+        # all, antenna)], monostatic twin to add)
+        fams = []
         if direct_paths:
             b, f = np.nonzero(vis.direct[s_tx] & vis.direct[s_rx])
             fams.append((0, b, f, tx, rx, [], False))
@@ -60,23 +62,23 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
             for kind, s_img, s_other, ant in ((1 + 2 * w, s_tx, s_rx, tx), (2 + 2 * w, s_rx, s_tx, rx)):
                 if (kind % 2 == 0 and mono) or (s_img, w) not in vis.images:
                     continue
-                b, f, cos_w = vis.images[(s_img, w)]
-                keep = vis.direct[s_other][b, f]
+                b, f, _ = vis.images[(s_img, w)]
+                keep = np.flatnonzero(vis.direct[s_other][b, f])
                 img = mirror(sources[s_img], wall)
                 p_a, p_b = (img, rx) if kind % 2 else (tx, img)
-                fams.append((kind, b[keep], f[keep], p_a, p_b, [(wall, cos_w[keep], ant)], mono and kind % 2 == 1))
+                fams.append((kind, b[keep], f[keep], p_a, p_b, [(wall, (s_img, w), keep, ant)], mono and kind % 2 == 1))
         for w1, w2 in (double if image_paths else ()):
             if (mono and w2 < w1) or (s_tx, w1) not in vis.images or (s_rx, w2) not in vis.images:
                 continue  # monostatic: (w2, w1) is merged into (w1, w2)
-            b, f, cos1 = vis.images[(s_tx, w1)]
-            cos2 = cos1
+            b, f, _ = vis.images[(s_tx, w1)]
+            i1 = i2 = None
             if (s_rx, w2) != (s_tx, w1):  # facets seen through both images
-                b2, f2, cos2 = vis.images[(s_rx, w2)]
+                b2, f2, _ = vis.images[(s_rx, w2)]
                 n_f = cent.shape[1]
                 _, i1, i2 = np.intersect1d(b * n_f + f, b2 * n_f + f2, assume_unique=True, return_indices=True)
-                b, f, cos1, cos2 = b[i1], f[i1], cos1[i1], cos2[i2]
+                b, f = b[i1], f[i1]
             fams.append((double_kind(w1, w2, n_w), b, f, mirror(tx, walls[w1]), mirror(rx, walls[w2]),
-                         [(walls[w1], cos1, tx), (walls[w2], cos2, rx)], mono and w1 != w2))
+                         [(walls[w1], (s_tx, w1), i1, tx), (walls[w2], (s_rx, w2), i2, rx)], mono and w1 != w2))
         fams = [fam for fam in fams if fam[1].size]
         found = {}
         if fams:  # one gather and one compiled call for all kinds of the link
@@ -87,7 +89,7 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
             twin = np.repeat([fam[6] for fam in fams], sizes)
             c = cent[b, f]
             ph = None if phases is None else phases[f]  # the facet's own surface phase on every path
-            g = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b, f, p_a, p_b, po, ph)
+            g, g_rev, t = _gains_and_twins(material, wavelength, cent, norm, area, mesh, b, f, p_a, p_b, po, ph, twin)
             if pattern is not None:  # isotropic links skip this: their gains stay bit-identical
                 at_tx, at_rx = antenna_targets([(fam[0], k) for fam, k in zip(fams, sizes)], c, walls)
                 same = pattern[0] == pattern[1]  # monostatic: the same antenna at the same place
@@ -99,25 +101,64 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
                 else:
                     amp_rx = antenna_gain(pattern[1], rx, at_rx)
                 g *= amp_tx * amp_rx
-            if twin.any():  # monostatic: add the reverse path (same delay and visibility)
-                t = np.flatnonzero(twin)
-                g_rev = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b[t], f[t], p_b[t], p_a[t],
-                                            po, None if ph is None else ph[t])
-                if pattern is not None:  # reversed, the transmitter sees the receiver's target and vice versa
-                    g_rev *= (amp_tx[t] * amp_rx[t] if same else  # same antenna and place: symmetric
+                if t.size:  # reversed, the transmitter sees the receiver's target and vice versa
+                    g_rev *= (amp_tx[t] * amp_rx[t] if same else
                               antenna_gain(pattern[0], tx, at_rx[t]) * antenna_gain(pattern[1], rx, at_tx[t]))
+            if t.size:  # monostatic: add the reverse path (same delay and visibility)
                 g[t] += g_rev
+            factors = _WallFactors(vis, cent, wavelength, fams)
             at = 0
             for (kind, bk, fk, _, _, via, _), k in zip(fams, sizes):
                 gk = g[at:at + k]
-                for wall, cos_w, ant in via:
-                    q_dir = mirror(c[at:at + k], wall) - ant  # antenna -> mirrored centroid: via the reflection point
-                    q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
-                    gk = gk * wall_factor(wall, cos_w, q_dir, wavelength)
+                for wall, key, rows, ant in via:
+                    gk = gk * factors(wall, key, rows, ant, c[at:at + k])
                 found[kind] = (bk + slot0, fk, gk)
                 at += k
         out.append(found)
     return out
+
+
+def _gains_and_twins(material, wavelength, cent, norm, area, mesh, b, f, p_a, p_b, po, ph, twin):
+    """(gains [N], reverse gains of the twins [T], twin rows [T]): `facet_gains_indexed` on p_a -> p_b, and
+    on p_b -> p_a where `twin`; the Lambertian kernel evaluates both directions in one pass (same values)."""
+    t = np.flatnonzero(twin)
+    if material.pattern != "lambertian" or not t.size:
+        g = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b, f, p_a, p_b, po, ph)
+        g_rev = None if not t.size else facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b[t], f[t],
+                                                             p_b[t], p_a[t], po, None if ph is None else ph[t])
+        return g, g_rev, t
+    from rtchannel.backends.facet_kernels import indexed_gains
+
+    d, s, d_rev, s_rev = indexed_gains(cent, norm, area, *mesh, b, f, p_a, p_b, material.eta, material.thickness or 0.0,
+                                       wavelength, material.scattering_coefficient, material.xpd_coefficient, po, twin)
+    g, g_rev = (d * ph, d_rev[t] * ph[t]) if ph is not None else (d.astype(complex), d_rev[t].astype(complex))
+    return (g + s, g_rev + s_rev[t], t) if po else (g, g_rev, t)
+
+
+class _WallFactors:
+    """Wall reflection factors (`wall_factor`) of one link's paths, evaluated once per image (source, wall)
+    where a double bounce uses all its facets and gathered for the single bounce's subset (the factor of a
+    path depends on its own facet and image only), and once for both ends of a monostatic same-wall
+    double bounce (the same reflection point twice)."""
+
+    def __init__(self, vis, cent, wavelength, fams):
+        self.vis, self.cent, self.wavelength = vis, cent, wavelength
+        self.full = {key for fam in fams for _, key, rows, _ in fam[5] if rows is None}
+        self.cache = {}
+
+    def __call__(self, wall, key, rows, ant, c):
+        if key in self.full:
+            if key not in self.cache:
+                b, f, cos_w = self.vis.images[key]
+                self.cache[key] = self._factor(wall, cos_w, self.cent[b, f], ant)
+            return self.cache[key] if rows is None else self.cache[key][rows]
+        cos_w = self.vis.images[key][2]
+        return self._factor(wall, cos_w if rows is None else cos_w[rows], c, ant)
+
+    def _factor(self, wall, cos_w, c, ant):
+        q_dir = mirror(c, wall) - ant  # antenna -> mirrored centroid: via the reflection point
+        q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
+        return wall_factor(wall, cos_w, q_dir, self.wavelength)
 
 
 def antenna_targets(kinds_sizes, cent, walls) -> tuple[np.ndarray, np.ndarray]:
@@ -211,13 +252,9 @@ def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db) -> 
         c0 = sum(i.size for i in all_ids)
         sl = slice(c0, c0 + fidx.size)
         vel = np.asarray(vels, float) if has_vel else np.zeros((1, 1, 3))
-        g_out, d_out, r_out = np.empty((k, fidx.size), complex), np.empty((k, fidx.size)), np.empty((k, fidx.size))
+        # written in place: each part's columns of the link's arrays (no per-part copy)
         _fill_paths(verts, vel, np.asarray(faces, np.int64), fidx, pa, pb, g_trace, slot, nxt, wgt, has_vel,
-                    g_out, d_out, r_out)
-        if len(parts) == 1:
-            gains, delays, rates = g_out, d_out, r_out
-        else:
-            gains[:, sl], delays[:, sl], rates[:, sl] = g_out, d_out, r_out
+                    gains[:, sl], delays[:, sl], rates[:, sl])
         all_ids.append(fidx + id_faces * kinds)
     return PathSet(times=times, delays=delays, gains=gains, ids=np.concatenate(all_ids),
                    delay_rates=rates if has_vel else None, link=name)
@@ -228,6 +265,9 @@ def _fill_paths(verts, vels, faces, fidx, pa, pb, g_trace, slot, nxt, w, has_vel
     """Per frame k and path p: gain interpolated between traced frames; centroid delay and its rate
     (NaN / 0 where the gain is 0). Fused so the [K, P] arrays are written once."""
     n_k, n_p = gains.shape
+    same = np.empty(n_p, np.bool_)  # monostatic path (both ends at one point): one leg's numbers serve twice
+    for p in range(n_p):
+        same[p] = pa[p, 0] == pb[p, 0] and pa[p, 1] == pb[p, 1] and pa[p, 2] == pb[p, 2]
     for k in numba.prange(n_k):
         j0, j1, wk = slot[k], nxt[k], w[k]
         for p in range(n_p):
@@ -246,14 +286,24 @@ def _fill_paths(verts, vels, faces, fidx, pa, pb, g_trace, slot, nxt, w, has_vel
             for i in range(3):
                 ci = (verts[k, a, i] + verts[k, b, i] + verts[k, c, i]) / 3.0
                 da = ci - pa[p, i]
-                db = ci - pb[p, i]
                 ra2 += da * da
-                rb2 += db * db
+                if not same[p]:
+                    db = ci - pb[p, i]
+                    rb2 += db * db
                 if has_vel:
                     vi = (vels[k, a, i] + vels[k, b, i] + vels[k, c, i]) / 3.0
                     dot_a += vi * da
-                    dot_b += vi * db
+                    if not same[p]:
+                        dot_b += vi * db
             ra = np.sqrt(ra2)
+            if same[p]:  # the same operations on the same numbers: bit for bit the two-leg result
+                delays[k, p] = (ra + ra) / C0
+                if has_vel:
+                    x = dot_a / ra
+                    rates[k, p] = (x + x) / C0
+                else:
+                    rates[k, p] = 0.0
+                continue
             rb = np.sqrt(rb2)
             delays[k, p] = (ra + rb) / C0
             rates[k, p] = (dot_a / ra + dot_b / rb) / C0 if has_vel else 0.0

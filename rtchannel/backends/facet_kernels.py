@@ -23,19 +23,28 @@ def lambertian_po_gains(c, n, area, corners, p_a, p_b, eta, thickness, wavelengt
                          np.zeros(e, np.int64), np.arange(e), p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po)
 
 
-def indexed_gains(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po):
+def indexed_gains(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po,
+                  reverse=None):
     """`lambertian_po_gains` of elements given by index, without gathering them: element i is facet ef[i]
     of frame eb[i], with centroid cent[eb, ef], normal norm[eb, ef] ([B, F, 3]), area area[eb, ef] ([B, F])
-    and corners verts[eb, faces[ef]] (verts [B, V, 3], faces [F, 3]); p_a, p_b [E, 3]."""
+    and corners verts[eb, faces[ef]] (verts [B, V, 3], faces [F, 3]); p_a, p_b [E, 3].
+
+    reverse: optional bool [E]; where set, the same element on p_b -> c -> p_a (the merged monostatic
+    twin) is evaluated in the same pass, sharing its geometry and triangle integral, and the result is
+    (diffuse, PO, reverse diffuse [E], reverse PO [E] complex or None), valid where `reverse` is set."""
     e = len(eb)
     diffuse, specular = np.empty(e), np.empty(e if po else 0, complex)
+    rev = np.zeros(0, np.bool_) if reverse is None else np.ascontiguousarray(reverse, np.bool_)
+    rev_d, rev_p = np.zeros(e if rev.size else 0), np.zeros(e if rev.size and po else 0, complex)
     pec = eta is None
     arr = [np.ascontiguousarray(x, float) for x in (cent, norm, area, verts)]
     idx = [np.ascontiguousarray(x, np.int64) for x in (faces, eb, ef)]
     ends = [np.ascontiguousarray(x, float) for x in (p_a, p_b)]
     kernel = _facets_parallel if e >= _PARALLEL_MIN else _facets_serial
     kernel(*arr, *idx, *ends, complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), float(s_coef),
-           float(xpd), po, diffuse, specular)
+           float(xpd), po, diffuse, specular, rev, rev_d, rev_p)
+    if reverse is not None:
+        return diffuse, (specular if po else None), rev_d, (rev_p if po else None)
     return diffuse, (specular if po else None)
 
 
@@ -45,8 +54,9 @@ def wall_factors(cos_w, k_in, normal, eta, thickness, wavelength) -> np.ndarray:
     directions k_in [N, 3]; see `surface_scattering.wall_factor`."""
     out = np.empty(len(cos_w), complex)
     pec = eta is None
-    _walls_serial(np.ascontiguousarray(cos_w, float), np.ascontiguousarray(k_in, float), np.asarray(normal, float),
-                  complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), out)
+    kernel = _walls_parallel if len(out) >= _PARALLEL_MIN else _walls_serial
+    kernel(np.ascontiguousarray(cos_w, float), np.ascontiguousarray(k_in, float), np.asarray(normal, float),
+           complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), out)
     return out
 
 
@@ -91,16 +101,27 @@ def _co_polar_one(kx, ky, kz, nx, ny, nz, r_te, r_tm):
             + r_tm * (ix * ax + iy * ay + iz * az) * (bx * ox + by * oy + bz * oz))
 
 
+@numba.njit(cache=True, inline="always")
+def _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
+    kn = np.sqrt(k_in[e, 0] ** 2 + k_in[e, 1] ** 2 + k_in[e, 2] ** 2)
+    if pec:
+        r_te, r_tm = -1.0 + 0j, 1.0 + 0j
+    else:
+        r_te, r_tm = _slab_one(min(max(cos_w[e], 0.0), 1.0), eta, thickness, wavelength)
+    out[e] = np.conj(_co_polar_one(k_in[e, 0] / kn, k_in[e, 1] / kn, k_in[e, 2] / kn,
+                                   normal[0], normal[1], normal[2], r_te, r_tm))
+
+
 @numba.njit(cache=True)
 def _walls_serial(cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
     for e in range(cos_w.shape[0]):
-        kn = np.sqrt(k_in[e, 0] ** 2 + k_in[e, 1] ** 2 + k_in[e, 2] ** 2)
-        if pec:
-            r_te, r_tm = -1.0 + 0j, 1.0 + 0j
-        else:
-            r_te, r_tm = _slab_one(min(max(cos_w[e], 0.0), 1.0), eta, thickness, wavelength)
-        out[e] = np.conj(_co_polar_one(k_in[e, 0] / kn, k_in[e, 1] / kn, k_in[e, 2] / kn,
-                                       normal[0], normal[1], normal[2], r_te, r_tm))
+        _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out)
+
+
+@numba.njit(parallel=True, cache=True)
+def _walls_parallel(cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
+    for e in numba.prange(cos_w.shape[0]):
+        _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out)
 
 
 @numba.njit(cache=True, inline="always")
@@ -177,7 +198,7 @@ def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, th
     scale = wavelength / (FOUR_PI_1_5 * ra * rb)
     out_d[e] = scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[b, f], 0.0))
     if not po:
-        return
+        return ra, rb, kx, ky, kz, ux, uy, uz, 0.0, 1.0, r_te, r_tm, 0j
     hx, hy, hz = ux - kx, uy - ky, uz - kz  # u_tx + u_rx (facet -> antennas)
     nh = nx * hx + ny * hy + nz * hz
     h_len = max(np.sqrt(hx * hx + hy * hy + hz * hz), 1e-12)
@@ -200,22 +221,67 @@ def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, th
     integral = 2 * tri * _dd2_cis(t0, t1, t2)
     out_p[e] = (np.sqrt(1.0 - s_coef * s_coef) * scale * 1j * np.conj(rho) * (np.sqrt(4 * np.pi) / wavelength)
                 * max(0.5 * nh, 0.0) * integral)
+    return ra, rb, kx, ky, kz, ux, uy, uz, nh, h_len, r_te, r_tm, integral
+
+
+@numba.njit(cache=True, inline="always")
+def _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p):
+    """`_facet_one` of element e on p_b -> c -> p_a from the forward pass's intermediates r: the reverse
+    directions are the forward ones negated (exactly, in floating point), the bisector, the bistatic Fresnel
+    coefficients and the triangle integral are the same, so only the incidence-dependent factors (Gamma,
+    polarisation, rho) are evaluated anew; every value equals the one `_facet_one` computes for the
+    swapped ends (tests/test_facet_speed_kernels.py)."""
+    ra_f, rb_f, kx_f, ky_f, kz_f, ux_f, uy_f, uz_f, nh, h_len, r_te_b, r_tm_b, integral = r
+    b, f = eb[e], ef[e]
+    n = norm[b, f]
+    ra, rb = rb_f, ra_f
+    kx, ky, kz = -ux_f, -uy_f, -uz_f
+    ux, uy, uz = -kx_f, -ky_f, -kz_f
+    nx, ny, nz = n[0], n[1], n[2]
+    cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
+    cos_s = min(max(nx * ux + ny * uy + nz * uz, 0.0), 1.0)
+    c2 = 0.5
+    gamma = 1.0
+    r_te, r_tm = -1.0 + 0j, 1.0 + 0j
+    if not pec:
+        c2 = _te_fraction_one(kx, ky, kz, nx, ny, nz)
+        r_te, r_tm = _slab_one(cos_i, eta, thickness, wavelength)
+        gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
+    scale = wavelength / (FOUR_PI_1_5 * ra * rb)
+    out_d[e] = scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[b, f], 0.0))
+    if not po:
+        return
+    hx, hy, hz = ux - kx, uy - ky, uz - kz
+    if not pec and (p_a[e, 0] != p_b[e, 0] or p_a[e, 1] != p_b[e, 1] or p_a[e, 2] != p_b[e, 2]):
+        r_te, r_tm = r_te_b, r_tm_b
+    rho = -_co_polar_one(kx, ky, kz, hx / h_len, hy / h_len, hz / h_len, r_te, r_tm)
+    out_p[e] = (np.sqrt(1.0 - s_coef * s_coef) * scale * 1j * np.conj(rho) * (np.sqrt(4 * np.pi) / wavelength)
+                * max(0.5 * nh, 0.0) * integral)
+
+
+@numba.njit(cache=True, inline="always")
+def _pair_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po,
+              out_d, out_p, rev, rev_d, rev_p):
+    r = _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
+                   po, out_d, out_p)
+    if rev.shape[0] and rev[e]:
+        _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, rev_d, rev_p)
 
 
 @numba.njit(parallel=True, cache=True)
 def _facets_parallel(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                     po, out_d, out_p):
+                     po, out_d, out_p, rev, rev_d, rev_p):
     for e in numba.prange(eb.shape[0]):
-        _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                   po, out_d, out_p)
+        _pair_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
+                  po, out_d, out_p, rev, rev_d, rev_p)
 
 
 @numba.njit(cache=True)
 def _facets_serial(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                   po, out_d, out_p):
+                   po, out_d, out_p, rev, rev_d, rev_p):
     for e in range(eb.shape[0]):
-        _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                   po, out_d, out_p)
+        _pair_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
+                  po, out_d, out_p, rev, rev_d, rev_p)
 
 
 # Below this many elements a parallel launch costs more than it saves (~0.1-0.3 us per element against a
@@ -243,34 +309,47 @@ def antenna_amplitudes(spec, position, targets) -> np.ndarray:
         pa, pe = antenna._cos_exponent(spec.hpbw_az_deg), antenna._cos_exponent(spec.hpbw_el_deg)
         back = 10.0 ** (-spec.front_to_back_db / 10.0)
     out = np.empty(len(targets))
-    _pattern_serial(targets, np.asarray(position, float), np.ascontiguousarray(spec.frame(position), float), gauss,
-                    float(pa), float(pe), float(back), 10.0 ** (-spec.floor_db / 10.0),
-                    10.0 ** (antenna.peak_gain_dbi(spec) / 10.0), antenna._TINY, out)
+    kernel = _pattern_parallel if len(out) >= _PARALLEL_MIN else _pattern_serial
+    kernel(targets, np.asarray(position, float), np.ascontiguousarray(spec.frame(position), float), gauss,
+           float(pa), float(pe), float(back), 10.0 ** (-spec.floor_db / 10.0),
+           10.0 ** (antenna.peak_gain_dbi(spec) / 10.0), antenna._TINY, out)
     return out
+
+
+@numba.njit(cache=True, inline="always")
+def _pattern_one(e, targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out):
+    """sqrt(g0 max(pattern, floor)) per target: `processing.radar.antenna._normalised` of the local direction
+    (d @ frame) / |d| (boresight for a target at the antenna); pa, pe are the Gaussian's HPBW^-2 [rad^-2]
+    or the Yagi's cos exponents, back the Yagi's back-lobe level."""
+    dx, dy, dz = targets[e, 0] - pos[0], targets[e, 1] - pos[1], targets[e, 2] - pos[2]
+    r = np.sqrt(dx * dx + dy * dy + dz * dz)
+    if r > 0:
+        x = (dx * frame[0, 0] + dy * frame[1, 0] + dz * frame[2, 0]) / r
+        y = (dx * frame[0, 1] + dy * frame[1, 1] + dz * frame[2, 1]) / r
+        z = (dx * frame[0, 2] + dy * frame[1, 2] + dz * frame[2, 2]) / r
+    else:
+        x, y, z = 1.0, 0.0, 0.0
+    s2 = y * y + z * z
+    axis = s2 < tiny
+    den = max(s2, tiny)
+    if gauss:
+        psi = np.arctan2(np.sqrt(s2), x)
+        q = pa if axis else (y * y * pa + z * z * pe) / den
+        g = np.exp(-4.0 * np.log(2.0) * psi * psi * q)
+    else:
+        n = pa if axis else (y * y * pa + z * z * pe) / den
+        g = max(max(x, 0.0) ** n, back * max(-x, 0.0))
+    out[e] = np.sqrt(g0 * max(g, floor))
 
 
 @numba.njit(cache=True)
 def _pattern_serial(targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out):
-    """sqrt(g0 max(pattern, floor)) per target: `processing.radar.antenna._normalised` of the local direction
-    (d @ frame) / |d| (boresight for a target at the antenna); pa, pe are the Gaussian's HPBW^-2 [rad^-2]
-    or the Yagi's cos exponents, back the Yagi's back-lobe level."""
     for e in range(targets.shape[0]):
-        dx, dy, dz = targets[e, 0] - pos[0], targets[e, 1] - pos[1], targets[e, 2] - pos[2]
-        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-        if r > 0:
-            x = (dx * frame[0, 0] + dy * frame[1, 0] + dz * frame[2, 0]) / r
-            y = (dx * frame[0, 1] + dy * frame[1, 1] + dz * frame[2, 1]) / r
-            z = (dx * frame[0, 2] + dy * frame[1, 2] + dz * frame[2, 2]) / r
-        else:
-            x, y, z = 1.0, 0.0, 0.0
-        s2 = y * y + z * z
-        axis = s2 < tiny
-        den = max(s2, tiny)
-        if gauss:
-            psi = np.arctan2(np.sqrt(s2), x)
-            q = pa if axis else (y * y * pa + z * z * pe) / den
-            g = np.exp(-4.0 * np.log(2.0) * psi * psi * q)
-        else:
-            n = pa if axis else (y * y * pa + z * z * pe) / den
-            g = max(max(x, 0.0) ** n, back * max(-x, 0.0))
-        out[e] = np.sqrt(g0 * max(g, floor))
+        _pattern_one(e, targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out)
+
+
+@numba.njit(parallel=True, cache=True)
+def _pattern_parallel(targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out):
+    for e in numba.prange(targets.shape[0]):
+        _pattern_one(e, targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out)
+

@@ -23,9 +23,10 @@ from __future__ import annotations
 import weakref
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from rtchannel.backends.wall_images import in_convex_polygon, mirror
+from rtchannel.backends.wall_images import mirror
 
 _STOP = 1e-4  # m: rays stop this short of their target triangle, so it never counts as its own occluder
 _WALL_LIFT = 1e-4  # m: rays leaving a wall start this far into the room, not on the plane
@@ -56,12 +57,68 @@ def occluded(scene, origins: np.ndarray, directions: np.ndarray, max_t: np.ndarr
 
 
 def _segments_free(caster, cell, start, end, stop):
-    """Free [N] of segments start -> end [N, 3] (m) in the given cells, stopping `stop` (m) short."""
+    """Free [N] of segments start -> end [N, 3] (m) in the given cells, stopping `stop` (m, scalar or [N])
+    short."""
+    if hasattr(caster, "free_segments"):
+        return caster.free_segments(cell, start, end, stop)
     d = end - start
     dist = np.sqrt(np.einsum("ij,ij->i", d, d))
     d /= np.where(dist > 0, dist, 1.0)[:, None]
     t = dist - stop
     return ~caster.occluded_cells(start, d, t, cell) & (t > 0)
+
+
+@numba.njit(cache=True)
+def _facing(normals, centroids, usable, sources):
+    """(flat index into [S, B, F], s, b, f) of the usable facets facing each source: n . (p - c) > 0, summed
+    in numpy einsum's order."""
+    n_b, n_f = usable.shape
+    size = sources.shape[0] * n_b * n_f
+    at, ss, bs, fs = np.empty(size, np.int64), np.empty(size, np.int64), np.empty(size, np.int64), np.empty(size, np.int64)
+    n = 0
+    for s in range(sources.shape[0]):
+        p = sources[s]
+        for b in range(n_b):
+            for f in range(n_f):
+                if usable[b, f]:
+                    nn, c = normals[b, f], centroids[b, f]
+                    if (nn[0] * (p[0] - c[0]) + nn[2] * (p[2] - c[2])) + nn[1] * (p[1] - c[1]) > 0:
+                        at[n], ss[n], bs[n], fs[n] = (s * n_b + b) * n_f + f, s, b, f
+                        n += 1
+    return at[:n], ss[:n], bs[:n], fs[:n]
+
+
+@numba.njit(cache=True)
+def _wall_hits(centroids, normals, need, h_c, h_src, image, poly, edge_n):
+    """(b [N], f [N], q [N, 3]) of the needed facets with h_c > 0 facing `image` whose reflection point q
+    (on centroid -> image at h_c / (h_c + h_src)) is inside the convex polygon (`in_convex_polygon`'s edge
+    test with edge normals edge_n [K, 3], either winding): numpy's formulas and summation order, fused."""
+    n_b, n_f = need.shape
+    bs, fs, qs = np.empty(n_b * n_f, np.int64), np.empty(n_b * n_f, np.int64), np.empty((n_b * n_f, 3))
+    n = 0
+    tol = 1e-9
+    for b in range(n_b):
+        for f in range(n_f):
+            h = h_c[b, f]
+            if not (need[b, f] and h > 0):
+                continue
+            c, nn = centroids[b, f], normals[b, f]
+            d0, d1, d2 = image[0] - c[0], image[1] - c[1], image[2] - c[2]
+            if not (nn[0] * d0 + nn[2] * d2) + nn[1] * d1 > 0:
+                continue
+            frac = h / (h + h_src)
+            q0, q1, q2 = c[0] + frac * d0, c[1] + frac * d1, c[2] + frac * d2
+            above, below = True, True
+            for k in range(poly.shape[0]):
+                e = edge_n[k]
+                sk = (e[0] * (q0 - poly[k, 0]) + e[2] * (q2 - poly[k, 2])) + e[1] * (q1 - poly[k, 1])
+                above &= sk >= -tol
+                below &= sk <= tol
+            if above or below:
+                bs[n], fs[n] = b, f
+                qs[n, 0], qs[n, 1], qs[n, 2] = q0, q1, q2
+                n += 1
+    return bs[:n], fs[:n], qs[:n]
 
 
 @dataclass
@@ -87,16 +144,23 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
     paths need a facet seen through two images, whether or not an antenna sees it directly)."""
     n_b, n_f = usable.shape
     direct = np.zeros((len(sources), n_b, n_f), bool)
-    parts = []
-    for s, pos in enumerate(sources):
-        b, f = np.nonzero(usable & (np.einsum("bfi,bfi->bf", normals, pos - centroids) > 0))
-        parts.append((s, b, f))
-    cell = np.concatenate([b for _, b, _ in parts])
-    end = np.concatenate([centroids[b, f] for _, b, f in parts])
-    start = np.repeat(sources, [b.size for _, b, _ in parts], axis=0)
-    free = np.split(_segments_free(caster, cell, start, end, _STOP), np.cumsum([b.size for _, b, _ in parts])[:-1])
-    for (s, b, f), ok in zip(parts, free):
-        direct[s, b[ok], f[ok]] = True
+    if hasattr(caster, "free_direct"):  # facing test and rays in compiled passes, no [N, 3] copies
+        sources = np.ascontiguousarray(sources, float)
+        at, s_idx, b, f = _facing(np.ascontiguousarray(normals, float), np.ascontiguousarray(centroids, float),
+                                  np.ascontiguousarray(usable), sources)
+        direct.ravel()[at[caster.free_direct(sources, s_idx, centroids, b, f, _STOP)]] = True
+    else:
+        parts = []
+        for s, pos in enumerate(sources):
+            b, f = np.nonzero(usable & (np.einsum("bfi,bfi->bf", normals, pos - centroids) > 0))
+            parts.append((s, b, f))
+        cell = np.concatenate([b for _, b, _ in parts])
+        end = np.concatenate([centroids[b, f] for _, b, f in parts])
+        start = np.repeat(sources, [b.size for _, b, _ in parts], axis=0)
+        free = np.split(_segments_free(caster, cell, start, end, _STOP),
+                        np.cumsum([b.size for _, b, _ in parts])[:-1])
+        for (s, b, f), ok in zip(parts, free):
+            direct[s, b[ok], f[ok]] = True
     images = {}
     if not walls:
         return BatchVisibility(direct, images)
@@ -116,12 +180,12 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
                 heights[w] = (centroids - wall.point) @ nw
             h_c = heights[w]
             need = usable if w in every_facet else needed[s]
-            b, f = np.nonzero(need & (h_c > 0) & (np.einsum("bfi,bfi->bf", normals, image - centroids) > 0))
+            # facets above the wall, facing the image, whose reflection point lies on the wall polygon
+            poly = np.asarray(wall.polygon, float)
+            b, f, q = _wall_hits(np.ascontiguousarray(centroids, float), np.ascontiguousarray(normals, float),
+                                 np.ascontiguousarray(need), np.ascontiguousarray(h_c, float), h_src, image, poly,
+                                 np.cross(np.roll(poly, -1, axis=0) - poly, nw))
             c = centroids[b, f]
-            frac = h_c[b, f] / (h_c[b, f] + h_src)
-            q = c + frac[:, None] * (image - c)
-            inside = in_convex_polygon(q, wall)
-            b, f, c, q = b[inside], f[inside], c[inside], q[inside]
             if b.size == 0:
                 continue
             leg = q - pos
@@ -132,12 +196,8 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
             stops += [np.full(b.size, _STOP), np.full(b.size, _LEG_STOP)]
             cells += [b, b]
     if jobs:
-        start, end = np.concatenate(starts), np.concatenate(ends)
-        d = end - start
-        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-        t = dist - np.concatenate(stops)
-        free = ~caster.occluded_cells(start, d / np.where(dist > 0, dist, 1.0)[:, None], t,
-                                      np.concatenate(cells)) & (t > 0)
+        free = _segments_free(caster, np.concatenate(cells), np.concatenate(starts), np.concatenate(ends),
+                              np.concatenate(stops))
         at = 0
         for s, w, b, f, cos_w in jobs:
             n = b.size
@@ -220,12 +280,56 @@ class FrameBatchCaster:
         self._params["body.vertex_positions"] = self._mi.Float(np.ascontiguousarray(v, np.float32).ravel())
         self._params.update()
 
+    def clear(self) -> None:
+        """Leave only the static geometry in every cell: the body's triangles are dropped (Embree skips
+        non-finite corners) or, through Mitsuba, collapsed onto one point (zero area, never hit)."""
+        if self._embree is not None:
+            self._embree.set_body(np.full((self.batch * self.n_vertices, 3), np.nan))
+            return
+        v = np.broadcast_to(self.offsets[:1] - 1.0, (self.batch * self.n_vertices, 3))
+        self._params["body.vertex_positions"] = self._mi.Float(np.ascontiguousarray(v, np.float32).ravel())
+        self._params.update()
+
+    def free_segments(self, cells, start, end, stop) -> np.ndarray:
+        """Free [N] of segments start -> end [N, 3] (m) in cells [N], stopping `stop` (m, scalar or [N]) short
+        (`_segments_free`): through Embree, rays are laid out in one compiled pass."""
+        if self._embree is None:
+            return _segments_free(_NumpyRoute(self), cells, start, end, stop)
+        from rtchannel.backends.embree import pack_rays
+
+        n = len(end)
+        rays, valid = np.empty((n, 12), np.float32), np.empty(n, bool)  # `embree.new_rays`' layout, all written
+        pack_rays(np.ascontiguousarray(start, float), np.zeros(0, np.int64), np.ascontiguousarray(end, float),
+                  np.atleast_1d(np.asarray(stop, float)), np.asarray(cells, np.int64), self.offsets, rays,
+                  rays.view(np.uint32), valid)
+        return ~self._embree.occluded_rays(rays) & valid
+
+    def free_direct(self, sources, s_idx, centroids, b, f, stop: float) -> np.ndarray:
+        """`free_segments` of sources[s_idx] -> centroids[b, f] ([B, F, 3]) in cells b, read in place."""
+        if self._embree is None:
+            return _segments_free(_NumpyRoute(self), b, sources[s_idx], centroids[b, f], stop)
+        from rtchannel.backends.embree import pack_direct
+
+        n = len(b)
+        rays, valid = np.empty((n, 12), np.float32), np.empty(n, bool)
+        pack_direct(sources, np.asarray(s_idx, np.int64), np.ascontiguousarray(centroids, float),
+                    np.asarray(b, np.int64), np.asarray(f, np.int64), float(stop), self.offsets, rays,
+                    rays.view(np.uint32), valid)
+        return ~self._embree.occluded_rays(rays) & valid
+
     def occluded_cells(self, origins, directions, max_t, cells) -> np.ndarray:
         """Any-hit test of rays [N, 3] (unit directions, up to max_t [N] m) in cells [N] (frame slots)."""
         origins = np.asarray(origins, float) + self.offsets[cells]
         if self._embree is not None:
             return self._embree.occluded(origins, directions, max_t)
         return occluded(self, origins, directions, max_t)
+
+
+class _NumpyRoute:
+    """A caster seen without `free_segments` (the Mitsuba route takes the numpy ray set-up)."""
+
+    def __init__(self, caster):
+        self.occluded_cells = caster.occluded_cells
 
 
 _CASTERS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -262,11 +366,7 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
     from rtchannel.errors import MOVE_THE_PERSON, RadarPlacementError
 
     for p in sources:
-        # squared distances per coordinate: no [K, V, 3] temporary (the test only picks frames to check)
-        d2 = (vertices[..., 0] - p[0]) ** 2
-        d2 += (vertices[..., 1] - p[1]) ** 2
-        d2 += (vertices[..., 2] - p[2]) ** 2
-        near = np.flatnonzero(d2.min(axis=1) < 0.25)
+        near = np.flatnonzero(_nearest_d2(np.ascontiguousarray(vertices, float), np.asarray(p, float)) < 0.25)
         for k in near:
             a, b, c = (vertices[k][faces[:, i]] for i in range(3))
             bary = closest_point_on_triangles(np.broadcast_to(p, a.shape), a, b, c)
@@ -279,3 +379,17 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
                 raise RadarPlacementError(
                     f"antenna at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m is {where} the body at t = {times[k]:.2f} s "
                     f"(minimum clearance {min_distance * 100:g} cm){MOVE_THE_PERSON}")
+
+
+@numba.njit(cache=True)
+def _nearest_d2(vertices, p):
+    """Squared distance [K] (m^2) from p [3] to the nearest vertex of each frame of vertices [K, V, 3], in
+    one pass (no [K, V] temporaries; the test only picks frames to check)."""
+    out = np.empty(vertices.shape[0])
+    for k in range(vertices.shape[0]):  # serial: ~1 ms, less than waking threads
+        best = np.inf
+        for v in range(vertices.shape[1]):
+            d2 = ((vertices[k, v, 0] - p[0]) ** 2 + (vertices[k, v, 1] - p[1]) ** 2) + (vertices[k, v, 2] - p[2]) ** 2
+            best = min(best, d2)
+        out[k] = best
+    return out
