@@ -75,7 +75,6 @@ from processing.pathset import PathSet
 from rtchannel.backends.facet_assemble import assemble, link_gains, merge_batches
 from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases
 from rtchannel.backends.visibility import batch_visibility, caster_for, check_body_clearance
-from rtchannel.body.skinning import face_normals_and_areas
 from processing.errors import InputError
 
 
@@ -114,6 +113,7 @@ DEFAULT_TRACE_FPS = 10.0
 DEFAULT_IMAGE_LOD = "2k"
 DEFAULT_MIN_RELATIVE_GAIN_DB = -50.0
 DEFAULT_DOUBLE_BOUNCE = "floor"
+DEFAULT_WALL_CUT_DB = -30.0  # walls="auto": see `scene_model.DEFAULT_WALL_CUT_DB`
 
 
 def trace_frame_indices(n_frames: int, fps: float, trace_fps: float | None) -> np.ndarray:
@@ -244,6 +244,8 @@ def double_bounce_pairs(double_bounce: bool | str | None, walls) -> list[tuple[i
 def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, wavelength, po, batch_frames,
            direct_paths, clock, progress, phases, double, antennas) -> list[dict]:
     """Visibility and gains at the traced frames of one mesh, batch by batch (one BVH build each)."""
+    from rtchannel.body.skinning import face_frames
+
     caster = caster_for(scene, faces, vertices, sources, min(batch_frames, len(trace_idx)))
     batches = []
     for start in range(0, len(trace_idx), caster.batch):
@@ -251,8 +253,7 @@ def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, w
         caster.load(vertices[frames])
         clock("bvh")
         v = vertices[frames]
-        normals, areas, degenerate = face_normals_and_areas(v, faces)
-        cent = (v[:, faces[:, 0]] + v[:, faces[:, 1]] + v[:, faces[:, 2]]) / 3  # = v[:, faces].mean(axis=2)
+        normals, areas, degenerate, cent = face_frames(v, faces)  # centroids ((a + b) + c) / 3, one pass
         vis = batch_visibility(caster, cent, normals, ~degenerate, sources, walls, pairs,
                                {w for pair in double for w in pair})
         clock("rays")
@@ -281,11 +282,13 @@ class _Clock:
 
 
 def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float | None = DEFAULT_TRACE_FPS,
-                walls: bool = True, po: bool = True, skin=None,
+                walls: bool | str = True, po: bool = True, skin=None,
                 min_relative_gain_db: float | None = DEFAULT_MIN_RELATIVE_GAIN_DB,
                 progress=None, velocity_method: str = "spline", timing: dict | None = None,
                 batch_frames: int = 16, image_lod: str | None = DEFAULT_IMAGE_LOD, seed: int | None = 0,
-                double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE, clutter: bool = True) -> dict[str, PathSet]:
+                double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE, clutter: bool = True,
+                trace_step_m: float | None = None, wall_cut_db: float | None = DEFAULT_WALL_CUT_DB,
+                stats: dict | None = None) -> dict[str, PathSet]:
     """Persistent facet path sets (one per link) of the skinned avatar moving with `motion`.
 
     The defaults are the fast setting (see `DEFAULT_TRACE_FPS`); ``trace_fps=None, image_lod=None,
@@ -295,12 +298,20 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         motion: the pose sequence (`rtchannel.motion.pose.Motion`); the avatar is scaled to its rig height.
         radar: `rtchannel.radar.RadarConfig` (links and carrier).
         scene: "room", "free_space", a Mitsuba XML path, or an `RTScene` whose body is this LOD.
-        lod: avatar level of detail ("full", "10k", "5k", "2k").
+        lod: avatar level of detail ("full", "10k", "5k", "2k"), or "auto": the coarsest whose facets scatter
+            like the smooth body at the carrier (`scene_model.lod_for_wavelength`).
         trace_fps: rate [Hz] of visibility/gain evaluation (None: every motion frame); a speed knob.
             Coarser than the motion only when below its frame rate.
+        trace_step_m: instead of `trace_fps`, trace where the body's fastest vertex has moved this far [m]
+            since the last traced frame (`scene_model.adaptive_trace_indices`; at least once a second).
         clutter: add the static clutter of the scene's walls, floor and furniture, shadowed by the body
             (`rtchannel.backends.clutter`); nothing to add in free space.
-        walls: include first-order body-wall image paths.
+        walls: include first-order body-wall image paths: True (every wall), False, "auto" (the walls
+            whose paths can reach the range window through the antennas' patterns, `scene_model.walls_in_view`)
+            or comma-separated wall names.
+        wall_cut_db: with ``walls="auto"``, cull a wall every antenna sees this many dB below its peak.
+        stats: optional dict receiving what the scene-dependent options chose ("lod", "walls", "culled_walls",
+            "traced_frames").
         po: add the physical-optics term to the diffuse gain (default on; off leaves only the diffuse part).
         skin: `rtchannel.scene.rt_scene.SkinMaterial` (default dry skin at the carrier).
         min_relative_gain_db: drop paths weaker than this (dB, negative) relative to the strongest.
@@ -329,12 +340,15 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     from rtchannel.body.skinning import blend_points, matrix_derivatives, rest_for_motion
 
     wf = radar.waveform
+    stats = {} if stats is None else stats
+    if lod == "auto":
+        lod = _scene_lod(scene, wf.wavelength)
     rt = scene if isinstance(scene, RTScene) else get_scene(scene, lod, motion.rig.height, wf.carrier_hz, skin,
                                                             sionna=False)
     avatar = load_avatar(lod)
     if len(rt.body_faces) != avatar.n_faces:
         raise ValueError(f"scene body has {len(rt.body_faces)} triangles but LOD {lod!r} has {avatar.n_faces}")
-    coarse = load_avatar(image_lod) if walls and image_lod not in (None, lod) else None
+    coarse = load_avatar(image_lod) if walls is not False and image_lod not in (None, lod) else None
     if coarse is not None and coarse.n_faces > avatar.n_faces:
         raise InputError(f"image_lod {image_lod!r} ({coarse.n_faces} triangles) is finer than lod {lod!r}")
     timing = {} if timing is None else timing
@@ -354,10 +368,17 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     timing["skinning"] = timing.get("skinning", 0.0) + time.perf_counter() - t0
     links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
     material = SurfaceMaterial.from_skin(rt.skin, wf.carrier_hz)
-    trace_idx = trace_frame_indices(motion.n_frames, motion.fps, trace_fps)
+    if trace_step_m is not None:
+        from rtchannel.backends.scene_model import adaptive_trace_indices, fastest_speed
+
+        trace_idx = adaptive_trace_indices(motion.times, fastest_speed(vels), trace_step_m)
+    else:
+        trace_idx = trace_frame_indices(motion.n_frames, motion.fps, trace_fps)
+    used_walls = _used_walls(rt.walls, walls, links, radar, wall_cut_db, stats)
+    stats.update(lod=lod, walls=[getattr(w, "name", "?") for w in used_walls], traced_frames=len(trace_idx))
     paths = mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material, trace_idx,
-                       rt.walls if walls else (), po, min_relative_gain_db, progress, timing, batch_frames,
-                       image_mesh, seed, double_bounce)
+                       used_walls, po, min_relative_gain_db, progress, timing, batch_frames,
+                       image_mesh if used_walls else None, seed, _culled_double(double_bounce, stats))
     if clutter and rt.static_meshes:
         from rtchannel.backends.clutter import clutter_paths, merged
 
@@ -370,3 +391,48 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     return paths
 
 
+
+
+def _scene_lod(scene, wavelength: float) -> str:
+    """``lod="auto"``: the scene's own body LOD when given an `RTScene`, else `scene_model.lod_for_wavelength`."""
+    from rtchannel.backends.scene_model import lod_for_wavelength
+    from rtchannel.body.avatar import LODS
+    from rtchannel.scene.rt_scene import RTScene
+
+    if isinstance(scene, RTScene):
+        n = len(scene.body_faces)
+        from rtchannel.body.avatar import load_avatar
+
+        return next(lod for lod in LODS if load_avatar(lod).n_faces == n)
+    return lod_for_wavelength(wavelength)
+
+
+def _culled_double(double_bounce, stats: dict):
+    """A double bounce named after a wall that ``walls="auto"`` culled is dropped with it."""
+    if isinstance(double_bounce, str) and double_bounce in stats.get("culled_walls", {}):
+        return False
+    return double_bounce
+
+
+def _used_walls(walls, choice: bool | str, links, radar, wall_cut_db, stats: dict) -> list:
+    """The walls `choice` (True, False, "auto" or comma-separated names) selects; culled ones go to stats."""
+    walls = list(walls)
+    if choice is True:
+        return walls
+    if choice is False or not walls:
+        return []
+    if choice == "auto":
+        from processing.dsp.fast_time import max_range
+        from rtchannel.backends.scene_model import walls_in_view
+
+        kept, culled = walls_in_view(walls, links, max_range(radar.waveform, radar.dsp),
+                                     radar.waveform.range_resolution, wall_cut_db)
+        stats["culled_walls"] = culled
+        return kept
+    names = [n.strip() for n in str(choice).split(",") if n.strip()]
+    known = [getattr(w, "name", None) for w in walls]
+    bad = [n for n in names if n not in known]
+    if bad:
+        raise InputError(f"walls: no wall named {bad[0]!r} in the scene (its walls: {', '.join(map(str, known))}; "
+                         "or true, false, auto)")
+    return [w for w in walls if getattr(w, "name", None) in names]
