@@ -162,13 +162,48 @@ def _config(traced: dict, radar: RadarConfig, synthesis: str, noise_seed: int) -
     channel was traced from (`traced`: activity, motion, backend, backend_options) and how it was synthesised."""
     return {**{k: traced.get(k, d) for k, d in (("activity", ""), ("motion", {}))}, "radar": radar.model_dump(mode="json"),
             **{k: traced.get(k, d) for k, d in (("backend", ""), ("backend_options", {}))},
+            **{k: traced[k] for k in ("accuracy", "backend_stats") if k in traced},
             "synthesis": synthesis, "noise_seed": noise_seed,
             "iq_unit": "sqrt(W) at the ADC" if radar.receiver is not None else "sqrt(transmit power)"}
 
 
-def _traced(motion: Motion, backend: str, options: dict) -> dict:
-    return {"activity": motion.activity, "motion": motion.params, "backend": backend,
-            "backend_options": _described(options)}
+def _traced(motion: Motion, backend: str, options: dict, accuracy: dict | None = None,
+            stats: dict | None = None) -> dict:
+    out = {"activity": motion.activity, "motion": motion.params, "backend": backend,
+           "backend_options": _described(options)}
+    if accuracy is not None:
+        out["accuracy"] = accuracy
+    if stats:
+        out["backend_stats"] = _json_safe(stats)
+    return out
+
+
+def _json_safe(value):
+    """Backend statistics as JSON types (arrays to lists, unknown objects to their repr)."""
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value if isinstance(value, (str, int, float, bool, type(None))) else repr(value)
+
+
+def _budgeted(motion: Motion, radar: RadarConfig, backend: str, options: dict, accuracy, calibration):
+    """(backend options, accuracy record or None, stats sink or None): the options an accuracy budget
+    chooses (`rtchannel.accuracy.resolve`; explicit options win) and, for a backend that reports what its
+    scene-dependent options chose (``stats``), a dict to receive it."""
+    import inspect
+
+    record = None
+    if accuracy is not None:
+        from rtchannel.accuracy import resolve
+
+        options, record = resolve(accuracy, backend, radar, motion.activity, options, calibration)
+    stats = {} if "stats" in inspect.signature(backend_function(backend)).parameters else None
+    return options, record, stats
 
 
 def _motion_seed(motion_params: dict) -> int:
@@ -199,7 +234,7 @@ class PathSets:
 
 
 def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
-          **backend_options) -> PathSets:
+          accuracy=None, calibration=None, **backend_options) -> PathSets:
     """The channel of `motion` seen by every link of `radar`: the backend's path sets, nothing synthesised.
 
     Args:
@@ -207,12 +242,19 @@ def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "poin
         radar: antennas and links (`rtchannel.Radar`); default the seed's 2x2 system.
         backend: "points", "facets" or "sionna" (`rtchannel.BACKENDS`).
         scene: mesh backends only: a `rtchannel.Scene`, "room" (default), "free_space" or a Mitsuba XML path.
-        **backend_options: the backend's options, checked by name and type (e.g. ``lod="5k"``).
+        accuracy: mesh backends: "fast", "balanced", "exact" or an EMD budget [m/s]; the cheapest calibrated
+            settings within it are used (`rtchannel.accuracy`) and recorded in ``config["accuracy"]``.
+        calibration: the calibration table for `accuracy` (path or `CalibrationTable`; default: the shipped
+            table of the radar's carrier and range bin).
+        **backend_options: the backend's options, checked by name and type (e.g. ``lod="5k"``); with
+            `accuracy`, they override the chosen settings.
 
     Returns:
         `PathSets` (one `PathSet` per link name).
     """
     radar = RadarConfig() if radar is None else radar
+    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
+    backend_options, record, stats = _budgeted(motion, radar, backend, backend_options, accuracy, calibration)
     validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     if scene is not None:
         if backend in MESH_BACKENDS:
@@ -221,9 +263,10 @@ def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "poin
             warnings.warn(f"the {backend} backend is a free-space model: scene '{scene}' is not used",
                           stacklevel=2)
     t0 = time.perf_counter()
-    paths = backend_paths(motion, radar, backend, **backend_options)
+    paths = backend_paths(motion, radar, backend, **backend_options, **({} if stats is None else {"stats": stats}))
     timing = {"backend": time.perf_counter() - t0}
-    return PathSets(paths=paths, radar=radar, config=_traced(motion, backend, backend_options), timing=timing)
+    return PathSets(paths=paths, radar=radar, config=_traced(motion, backend, backend_options, record, stats),
+                    timing=timing)
 
 
 def synthesise(channel: PathSets, radar: RadarConfig | None = None, *, keep_iq: bool = False, progress=None,
@@ -259,7 +302,7 @@ def synthesise(channel: PathSets, radar: RadarConfig | None = None, *, keep_iq: 
 
 def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
              keep_iq: bool = False, progress=None, synthesis: str = "auto", iq_transform=None,
-             noise_seed: int | None = None, **backend_options) -> SimulationResult:
+             noise_seed: int | None = None, accuracy=None, calibration=None, **backend_options) -> SimulationResult:
     """Run `motion` through a scattering backend and the shared synthesiser/DSP for every link of `radar`:
     `synthesise(trace(...))`.
 
@@ -275,6 +318,7 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
         synthesis: "auto", "exact" or "grid" (see `processing.synthesis.exact.iter_synthesis`).
         iq_transform: optional `f(link name, iq) -> iq` applied before the DSP (e.g. signal augmentation).
         noise_seed: seed of the receiver noise (default: the motion's seed, else 0).
+        accuracy, calibration: an accuracy budget and its calibration table (see `trace`).
         **backend_options: the backend's options (e.g. `lod="5k"`, `walls=False` for facets).
 
     Returns:
@@ -282,7 +326,8 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
     """
     radar = RadarConfig() if radar is None else radar
     check_recording(motion.duration, radar.waveform, radar.dsp, len(radar.links), keep_iq)
-    channel = trace(motion, radar, backend, scene=scene, **backend_options)
+    channel = trace(motion, radar, backend, scene=scene, accuracy=accuracy, calibration=calibration,
+                    **backend_options)
     return synthesise(channel, keep_iq=keep_iq, progress=progress, synthesis=synthesis,
                       iq_transform=iq_transform, noise_seed=noise_seed)
 
@@ -304,7 +349,7 @@ def union_radar(radars) -> RadarConfig:
 
 
 def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=None, keep_iq: bool = False,
-                    synthesis: str = "auto", iq_transforms=None, noise_seeds=None,
+                    synthesis: str = "auto", iq_transforms=None, noise_seeds=None, accuracy=None, calibration=None,
                     **backend_options) -> list[SimulationResult]:
     """`simulate` for several radars (e.g. one motion seen from the seed's 18 directions) with the backend
     run once: the body is skinned (and, for the mesh backends, its BVH built) once per frame and every
@@ -320,6 +365,8 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
         keep_iq: keep every link's raw IQ [chirps, samples].
         synthesis: "auto", "exact" or "grid".
         iq_transforms, noise_seeds: one per radar (default None / the motion's seed).
+        accuracy, calibration: an accuracy budget and its calibration table (see `trace`); chosen for the
+            first radar's carrier and range bin (the radars share one waveform).
         **backend_options: the backend's options, as `simulate`.
 
     Returns:
@@ -337,12 +384,14 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
         check_recording(motion.duration, r.waveform, r.dsp, len(r.links), keep_iq)
     validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     union = union_radar(radars)
+    backend_options, record, stats = _budgeted(motion, union, backend, backend_options, accuracy, calibration)
+    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     if scene is not None and backend in MESH_BACKENDS:
         backend_options["scene"] = scene
     t0 = time.perf_counter()
-    paths = backend_paths(motion, union, backend, **backend_options)
+    paths = backend_paths(motion, union, backend, **backend_options, **({} if stats is None else {"stats": stats}))
     shared = (time.perf_counter() - t0) / n
-    traced = _traced(motion, backend, backend_options)
+    traced = _traced(motion, backend, backend_options, record, stats)
     results = []
     for i, r in enumerate(radars):
         mine = {lk.name: replace(paths[f"r{i}__{lk.name}"], link=lk.name) for lk in r.links}

@@ -17,10 +17,12 @@ from rtchannel.pipeline import simulate
 
 
 def run_backends(backends: list[str], activities: list[str], radar: RadarConfig, seed: int = 0,
-                 height: float = 1.75, options: dict[str, dict] | None = None, progress=None) -> dict:
+                 height: float = 1.75, options: dict[str, dict] | None = None, progress=None,
+                 accuracy=None, calibration=None) -> dict:
     """Signatures {backend: {activity: {link: Signature}}} of procedural activities through each backend.
 
-    `options` maps a backend name to its keyword options (e.g. {"facets": {"lod": "5k"}}).
+    `options` maps a backend name to its keyword options (e.g. {"facets": {"lod": "5k"}}); `accuracy`
+    (with its `calibration` table) chooses the mesh backends' settings (`rtchannel.accuracy`).
     """
     options = options or {}
     out: dict = {}
@@ -29,7 +31,8 @@ def run_backends(backends: list[str], activities: list[str], radar: RadarConfig,
         for a in activities:
             # walks are centred on the origin (as the CLI does) so they stop 1 m short of a seed radar
             motion = generate(a, height=height, seed=seed, **({"start": (-2.0, 0.0)} if a == "walk" else {}))
-            res = simulate(motion, radar, backend=b, **options.get(b, {}))
+            budget = {"accuracy": accuracy, "calibration": calibration} if accuracy is not None and b != "points" else {}
+            res = simulate(motion, radar, backend=b, **budget, **options.get(b, {}))
             out[b][a] = {name: r.signature for name, r in res.links.items()}
             if progress is not None:
                 progress(1)
@@ -123,9 +126,11 @@ def plot_side_by_side(sigs: dict, path: Path, dynamic_range_db: float = 40.0) ->
 
 
 def compare(backends: list[str], activities: list[str], radar: RadarConfig, out_dir: Path, seed: int = 0,
-            height: float = 1.75, options: dict | None = None, progress=None) -> list[Path]:
-    """Run, tabulate (first backend against each other one) and plot; returns the files written."""
-    sigs = run_backends(backends, activities, radar, seed, height, options, progress)
+            height: float = 1.75, options: dict | None = None, progress=None, accuracy=None,
+            calibration=None) -> list[Path]:
+    """Run, tabulate (first backend against each other one) and plot; returns the files written. `accuracy`
+    and `calibration` go to the mesh backends (`run_backends`)."""
+    sigs = run_backends(backends, activities, radar, seed, height, options, progress, accuracy, calibration)
     written, summary = [], {}
     for other in backends[1:]:
         rows, cols, table = dtw_table(sigs[backends[0]], sigs[other])
@@ -135,6 +140,6 @@ def compare(backends: list[str], activities: list[str], radar: RadarConfig, out_
     written.append(plot_side_by_side(sigs, out_dir / "pvt_side_by_side.png"))
     p = out_dir / "summary.json"
     write_text_atomic(p, json.dumps({"backends": backends, "activities": activities, "seed": seed, "height": height,
-                             "options": options or {}, "radar": radar.model_dump(mode="json"),
+                             "options": options or {}, "accuracy": accuracy, "radar": radar.model_dump(mode="json"),
                              "comparisons": summary}, indent=1) + "\n")
     return [*written, p]

@@ -11,6 +11,10 @@ def cmd_bench(args) -> int:
     from rtchannel.cli.common import UserError, check_output, checked_options
 
     check_output(args.out, "dir")
+    if args.calibrate or args.validate_accuracy:
+        from rtchannel.cli.bench_accuracy import cmd_calibrate, cmd_validate_accuracy
+
+        return cmd_calibrate(args) if args.calibrate else cmd_validate_accuracy(args)
 
     if args.chain:
         from rtchannel.backends import BACKENDS
@@ -40,7 +44,7 @@ def cmd_bench(args) -> int:
     radar = RadarConfig()
     with tqdm(total=len(settings) + 1, unit="setting", disable=args.quiet or None) as bar:
         rows, summary = sweep(motion, radar, settings, reference, repeats=args.repeats, progress=bar.update,
-                              reference_seeds=args.reference_seeds)
+                              reference_seeds=args.reference_seeds or 8)
     meta = {"activity": f"{args.duration:g} s walk, 2 monostatic radars", "repeats": args.repeats,
             "reference": reference.label, **summary}
     for p in write_outputs(rows, args.out, meta):
@@ -69,10 +73,27 @@ def add_bench(sub) -> None:
                    help="with --chain: time the raw-IQ route (keep_iq) instead of the default signature-only route")
     p.add_argument("--quick", action="store_true",
                    help="sweep without Sionna (reference: facets on the full mesh); minutes instead of an hour")
-    p.add_argument("--reference-seeds", type=positive_int, default=8,
-                   help="runs (ray or diffuse-phase seeds) averaged into the reference (default 8)")
+    p.add_argument("--reference-seeds", type=positive_int,
+                   help="runs (ray or diffuse-phase seeds) averaged into the reference (default 8; 4 with "
+                   "--calibrate and --validate-accuracy)")
     p.add_argument("--repeats", type=positive_int, default=3, help="timed repeats per setting (default 3)")
     p.add_argument("--duration", type=finite_float, default=5.0, help="simulated walk length [s] (default 5)")
+    p.add_argument("--calibrate", action="store_true",
+                   help="measure the accuracy budget's calibration table (speed and error of facets settings per "
+                   "activity) for --radar and write calibration.{json,md,png} to --out")
+    p.add_argument("--validate-accuracy", action="store_true",
+                   help="check the budgets (fast, balanced, exact, --budget) against a converged reference on "
+                   "motions not used to calibrate; writes accuracy_validation.{csv,md,png} to --out")
+    p.add_argument("--radar", default="seed", help="with --calibrate/--validate-accuracy: seed, glasgow or a "
+                   "radar YAML file (default seed)")
+    p.add_argument("--calibration", type=Path, help="with --validate-accuracy: the table to check (default: the "
+                   "shipped one of the radar)")
+    p.add_argument("--budget", action="append", metavar="EMD", type=finite_float,
+                   help="with --validate-accuracy: also check this numeric budget [m/s] (repeatable)")
+    p.add_argument("--seeds", type=positive_int, default=2,
+                   help="with --calibrate: diffuse-phase seeds per setting and activity (default 2)")
+    p.add_argument("--activities", help="with --calibrate/--validate-accuracy: comma-separated activities "
+                   "(default all five)")
     p.add_argument("--out", type=Path, help="output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_bench)

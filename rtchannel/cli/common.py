@@ -246,3 +246,29 @@ def build_motion(args):
         return Motion.procedural(args.activity, height=args.height, fps=args.fps, seed=args.seed, **params)
     except ValidationError as e:
         raise UserError(validation_line(e, "motion parameters")) from None
+
+
+def add_accuracy_args(p) -> None:
+    """--accuracy and --calibration (read by `accuracy_kwargs`)."""
+    p.add_argument("--accuracy", metavar="BUDGET", help="mesh backends: fast, balanced, exact or an EMD [m/s]; the "
+                   "cheapest calibrated settings within it are used and stored with the signature (rtchannel.accuracy)")
+    p.add_argument("--calibration", type=Path, help="with --accuracy: a calibration table from `rtchannel bench "
+                   "--calibrate` (default: the shipped table of the radar's carrier and range bin)")
+
+
+def accuracy_kwargs(args) -> dict:
+    """{"accuracy", "calibration"} for `simulate` from --accuracy/--calibration (empty without --accuracy);
+    a bad budget or a missing table file is a one-line UserError."""
+    from rtchannel.accuracy import parse_budget
+
+    if getattr(args, "accuracy", None) is None:
+        if getattr(args, "calibration", None) is not None:
+            raise UserError("--calibration needs --accuracy")
+        return {}
+    try:
+        budget = parse_budget(args.accuracy)
+    except ValueError as e:
+        raise UserError(f"--accuracy: {e}") from None
+    if args.calibration is not None and not args.calibration.is_file():
+        raise UserError(f"--calibration: file not found: {args.calibration}")
+    return {"accuracy": budget, "calibration": args.calibration}

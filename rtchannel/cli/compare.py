@@ -51,7 +51,8 @@ def cmd_compare(args) -> int:
     if args.real is not None:
         return cmd_compare_real(args)
 
-    from rtchannel.cli.common import UserError, check_output, checked_options, load_radar, split_list
+    from rtchannel.cli.common import (UserError, accuracy_kwargs, check_output, checked_options, load_radar,
+                                      split_list)
     from rtchannel.analysis.compare import compare
     from rtchannel.motion.activities import ACTIVITIES
     from rtchannel.backends import BACKENDS
@@ -69,7 +70,7 @@ def cmd_compare(args) -> int:
     check_output(args.out, "dir")
     with tqdm(total=len(args.backends) * len(args.activities), unit="run", disable=args.quiet or None) as bar:
         files = compare(args.backends, args.activities, radar, args.out, seed=args.seed, height=args.height,
-                        options=options, progress=bar.update)
+                        options=options, progress=bar.update, **accuracy_kwargs(args))
     for f in files:
         print(f"wrote {f}")
     table = next(f for f in files if f.suffix == ".md")
@@ -79,7 +80,7 @@ def cmd_compare(args) -> int:
 
 def add_compare(sub) -> None:
     """Register the `compare` subcommand."""
-    from rtchannel.cli.common import add_radar_args, seed_int
+    from rtchannel.cli.common import add_accuracy_args, add_radar_args, seed_int
     from rtchannel.motion.activities import ACTIVITIES
 
     p = sub.add_parser("compare", help="one set of activities through several backends: DTW table + p(v,t) figure",
@@ -96,6 +97,7 @@ def add_compare(sub) -> None:
     p.add_argument("--height", type=float, default=1.75, help="body height [m]")
     p.add_argument("--seed", type=seed_int, default=0, help="motion seed")
     add_radar_args(p)
+    add_accuracy_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     g = p.add_argument_group("Table I against real recordings (--real: no simulation is run)")
     g.add_argument("--real", type=Path, help="folder of real spectrogram images (Glasgow layout and names, or "

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rtchannel.cli.common import (UserError, add_motion_args, add_radar_args, build_motion, check_output, load_radar,
-                                  parse_options)
+from rtchannel.cli.common import (UserError, accuracy_kwargs, add_accuracy_args, add_motion_args, add_radar_args,
+                                  build_motion, check_output, load_radar, parse_options)
 
 
 def add_simulate(sub) -> None:
@@ -15,7 +15,8 @@ def add_simulate(sub) -> None:
     add_motion_args(p)
     p.add_argument("--backend", default="points", help="scattering backend: points, facets or sionna (default points)")
     p.add_argument("--scene", help="mesh backends: room, free_space or a Mitsuba XML file (default room)")
-    p.add_argument("--lod", help="mesh backends: avatar level of detail full, 10k, 5k, 2k (default 10k)")
+    p.add_argument("--lod", help="mesh backends: avatar level of detail full, 10k, 5k, 2k or auto (default 10k)")
+    add_accuracy_args(p)
     add_chair_arg(p)
     p.add_argument("--option", action="append", metavar="NAME=VALUE",
                    help="any other backend option, e.g. walls=false, trace_fps=30, samples_per_src=100000")
@@ -74,6 +75,7 @@ def cmd_simulate(args) -> int:
     from processing.dsp.config import check_recording
 
     options = backend_options(args)
+    budget = accuracy_kwargs(args)
     radar, angle = load_radar(args)
     check_output(args.out, "dir")
     motion = build_motion(args)
@@ -86,9 +88,13 @@ def cmd_simulate(args) -> int:
     n_chirps = int(motion.duration / radar.waveform.pri_s + 1) * len(radar.links)
     with tqdm(total=n_chirps, unit="chirp", disable=args.quiet or None, desc=f"{args.activity}") as bar:
         result = simulate(motion, radar, args.backend, scene=scene, keep_iq=args.keep_iq, progress=bar.update,
-                          **options)
+                          **budget, **options)
     result.config["direction"] = None if args.angle_deg is not None else args.direction
     out = result.save(args.out / "signature.h5", seed=args.seed)
+    if "accuracy" in result.config:
+        acc = result.config["accuracy"]
+        print(f"accuracy {acc['budget']}: {acc['chosen']} (calibrated EMD {acc['calibrated_emd_m_s']:.3f} m/s, "
+              f"{acc['calibrated_s_per_sim_s']:.3g} s per simulated s; {acc['calibration']})")
     print(f"wrote {out}")
     if not args.no_plots:
         for png in result.plot(args.out, title=f"{args.activity} ({args.backend}, {angle:g} deg)"):

@@ -105,6 +105,8 @@ class _Job:
         seed_g = seed_scatterers(avatar_rig()).gains
         self.overall = float(np.sqrt(np.sum(self.gains ** 2) / np.sum(seed_g ** 2)))
         self.options = dict(item.backend_options)
+        if item.accuracy is not None:  # simulate's own keywords: the budget chooses the backend options per item
+            self.options.update(accuracy=item.accuracy, calibration=item.calibration)
         if item.backend == "points":
             self.options["gains"] = self.gains
         else:  # mesh backends: the drawn room and furniture (the points backend is free space)
@@ -160,7 +162,8 @@ class _Job:
         params = item.to_dict()
         params.update(motion_params=self.motion.params, gains=[float(x) for x in self.gains], gain_overall=overall,
                       clutter_draws=self.clutter_info or None, duration_s=float(self.motion.duration),
-                      warnings=sorted({str(w.message) for w in caught}), traced_with_items=shared_with)
+                      warnings=sorted({str(w.message) for w in caught}), traced_with_items=shared_with,
+                      accuracy_choice=result.config.get("accuracy"), backend_stats=result.config.get("backend_stats"))
         entry = {"item_id": item.item_id, "activity": item.activity, "label": ACTIVITIES.index(item.activity),
                  "direction_deg": item.angle_deg, "direction": item.direction, "backend": item.backend,
                  "group": item.group, "source": item.source, "link_set": item.link_set,
@@ -189,7 +192,7 @@ def shared_key(item: WorkItem) -> str:
     if item.backend == "points":  # per-item scatterer gains; the backend is ~1 % of the chain anyway
         return item.item_id
     return json.dumps([item.motion["key"], item.backend, item.backend_options, item.radar["waveform"],
-                       item.keep_iq, item.room], sort_keys=True, default=str)
+                       item.keep_iq, item.room, item.accuracy, item.calibration], sort_keys=True, default=str)
 
 
 def run_shared(items: list[WorkItem]) -> list[dict]:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import itertools
+import json
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -62,6 +63,9 @@ def load_plan(spec: str | Path, **overrides) -> Plan:
             s = s.model_copy(update={"files": str((f if f.is_absolute() else path.parent / f).resolve())})
         sources.append(s)
     plan = plan.model_copy(update={"motion": plan.motion.model_copy(update={"sources": sources})})
+    if plan.calibration is not None:  # relative to the plan file, like motion files
+        cal = Path(plan.calibration).expanduser()
+        plan = plan.model_copy(update={"calibration": str(cal if cal.is_absolute() else (path.parent / cal).resolve())})
     check_plan_options(plan, f"plan {path}")
     count_items(plan, lambda s: len(_motion_files(s, fetch=False)), f"plan {path}")  # counted, not expanded
     return plan
@@ -103,6 +107,8 @@ class WorkItem:
     image_layout: str | None = None
     chair: str = "none"
     room: str | None = None  # mesh backends: a generated box room (rtchannel.scene.rooms), drawn per motion
+    accuracy: str | float | None = None  # mesh backends: the plan's accuracy budget (rtchannel.accuracy)
+    calibration: str | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -304,11 +310,20 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
                         backend_options=dict(plan.backend_options), gain_set=gs.model_dump(mode="json"),
                         snr_db=snr, clutter=None if cl is None else cl.model_dump(mode="json"),
                         keep_iq=plan.storage.keep_iq, image_layout=plan.storage.image_layout,
-                        chair=plan.chair))
+                        chair=plan.chair, accuracy=plan.accuracy, calibration=plan.calibration))
             if ph.room is not None:  # one room for all items of a motion: they share one mesh-backend run
                 rng_room = np.random.default_rng(derive_seed(plan.seed, "room:" + motion_id))
                 room = ph.room.draw(_antennas(motion_items), rng_room)
                 motion_items = [replace(it, room=room) for it in motion_items]
             items += motion_items
     items.sort(key=lambda it: it.item_id)
+    if plan.accuracy is not None:  # every waveform needs a calibration table: fail at --dry-run, not per item
+        from rtchannel.accuracy import table_for
+        from rtchannel.radar import RadarConfig
+
+        for wf in {json.dumps(it.radar["waveform"], sort_keys=True): it for it in items}.values():
+            try:
+                table_for(RadarConfig.model_validate(wf.radar), plan.calibration)
+            except ValueError as e:
+                raise ConfigError(f"plan {plan.name!r}: accuracy: {e}") from None
     return items

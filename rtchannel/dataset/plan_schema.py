@@ -107,6 +107,8 @@ class MotionLayer(_Model):
     @field_validator("clip_start_s")
     @classmethod
     def _start(cls, v):
+        if v is None:  # explicit null (a dumped plan read back): no clip start
+            return v
         for k, x in (_per_activity(v, "clip_start_s") if isinstance(v, dict) else {"": v}).items():
             if x != "anywhere":
                 _within(x, -30.0, 600.0, f"clip_start_s.{k}" if k else "clip_start_s", " s")
@@ -245,12 +247,28 @@ class Plan(_Model):
     seed: int = Field(0, ge=0, le=2**63 - 1, description="plan seed: every random draw derives from it")
     backend: str = Field("points", min_length=1)
     backend_options: dict[str, Any] = Field(default_factory=dict)
+    accuracy: str | float | None = Field(None, description="mesh backends: accuracy budget (fast, balanced, exact "
+                                         "or an EMD in m/s) choosing backend settings per item (rtchannel.accuracy)")
+    calibration: str | None = Field(None, description="with accuracy: calibration table JSON (default: the "
+                                    "shipped table of the radar's carrier and range bin)")
     chair: Literal["auto", "none"] = Field("none", description="mesh backends: auto puts a chair under sit and "
                                            "stand motions (Scene.for_motion), as --chair auto")
     motion: MotionLayer
     physical: PhysicalLayer = Field(default_factory=PhysicalLayer)
     signal: SignalLayer = Field(default_factory=SignalLayer)
     storage: Storage = Field(default_factory=Storage)
+
+    @model_validator(mode="after")
+    def _budget(self) -> "Plan":
+        if self.accuracy is not None:
+            from rtchannel.accuracy import parse_budget
+
+            self.accuracy = parse_budget(self.accuracy)
+            if self.backend == "points":
+                raise InputError("accuracy chooses a mesh backend's settings; the points backend has none")
+        elif self.calibration is not None:
+            raise InputError("calibration needs accuracy")
+        return self
 
     @model_validator(mode="after")
     def _image_clips(self) -> "Plan":

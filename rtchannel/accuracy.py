@@ -1,0 +1,179 @@
+"""Accuracy budget: the cheapest backend settings whose signature error stays within a budget.
+
+The error of a setting is the earth-mover distance (Wasserstein-1, m/s) of its p(v,t) from a converged
+reference (`rtchannel.analysis.speed_error`), measured per activity by `rtchannel bench --calibrate` for one
+radar and written to a calibration table (JSON). Tables for the presets' radars ship with the package
+(`rtchannel/calibration/*.json`); a table is chosen by the radar's carrier and range resolution, the two
+scales the modelling knobs depend on (the facet size against the wavelength, the range window in bins), so
+a user's radar at another carrier or bandwidth needs its own (`rtchannel bench --calibrate --radar FILE`).
+
+Budgets (`--accuracy`, per activity; an activity the table lacks takes the worst calibrated one):
+
+- ``exact``: the table's full-accuracy setting (full LOD, every frame traced, every path kept).
+- ``balanced``: no worse than today's default setting (the table's ``default`` row), as cheaply as possible.
+- ``fast``: within `FAST_FACTOR` times the default's error.
+- a number: within that many m/s EMD.
+
+The choice (budget, target, chosen row, its calibrated error and cost, the table) goes into every result's
+config (`accuracy`) and so into every stored signature. Options the user sets explicitly override the
+chosen row's (and are recorded as overrides): the calibrated error then no longer applies to them.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from processing.errors import InputError
+
+BUDGETS = ("fast", "balanced", "exact")
+FAST_FACTOR = 1.5  # "fast" allows half again the default's error: between the default and the point model
+CALIBRATION_DIR = Path(__file__).resolve().parent / "calibration"
+MATCH_TOLERANCE = 0.01  # relative: a carrier or range bin within 1 % is the same radar for the knobs
+
+
+class CalibrationRow(BaseModel):
+    """One calibrated setting: backend options, wall time per simulated second [s] (median over the
+    calibration motions) and p(v,t) EMD [m/s] per activity (mean over links and diffuse-phase seeds)."""
+
+    model_config = ConfigDict(extra="forbid")
+    label: str
+    backend: str
+    options: dict = Field(default_factory=dict)
+    s_per_sim_s: float
+    emd_m_s: dict[str, float]
+    emd_sem_m_s: dict[str, float] = Field(default_factory=dict, description="standard error over seeds")
+    role: str = Field("candidate", description="default, exact or candidate")
+
+    def error(self, activity: str | None) -> float:
+        """Calibrated EMD [m/s] for `activity` (the worst activity if it was not calibrated)."""
+        return self.emd_m_s.get(activity, max(self.emd_m_s.values())) if activity else max(self.emd_m_s.values())
+
+
+class CalibrationTable(BaseModel):
+    """Speed and error of a backend's settings for one radar (`rtchannel bench --calibrate`)."""
+
+    model_config = ConfigDict(extra="forbid")
+    radar: str = Field(description="what the table was measured for (name)")
+    carrier_hz: float
+    range_resolution_m: float
+    reference: str = Field(description="the converged reference setting and its seed count")
+    motions: dict[str, str] = Field(default_factory=dict, description="activity -> calibration motion")
+    seeds: int = 1
+    single_run_floor_m_s: dict[str, float] = Field(default_factory=dict)
+    rows: list[CalibrationRow]
+
+    def row(self, role: str) -> CalibrationRow:
+        """The row of `role` ("default" or "exact")."""
+        for r in self.rows:
+            if r.role == role:
+                return r
+        raise InputError(f"calibration table for {self.radar} has no {role!r} row")
+
+    def matches(self, carrier_hz: float, range_resolution_m: float) -> bool:
+        """Whether a radar with this carrier [Hz] and range bin [m] can use the table."""
+        return (abs(carrier_hz / self.carrier_hz - 1) <= MATCH_TOLERANCE
+                and abs(range_resolution_m / self.range_resolution_m - 1) <= MATCH_TOLERANCE)
+
+    def digest(self) -> str:
+        """Short sha256 of the table's content (identifies it in stored signatures)."""
+        return hashlib.sha256(json.dumps(self.model_dump(mode="json"), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def load_table(path: str | Path) -> CalibrationTable:
+    """Read a calibration table (JSON written by `rtchannel bench --calibrate`)."""
+    path = Path(path)
+    try:
+        return CalibrationTable.model_validate_json(path.read_text())
+    except FileNotFoundError:
+        raise InputError(f"calibration table {path} does not exist") from None
+    except ValueError as e:
+        raise InputError(f"calibration table {path} is not valid: {str(e).splitlines()[0]}") from None
+
+
+def shipped_tables() -> list[tuple[Path, CalibrationTable]]:
+    """The calibration tables that ship with the package (the presets' radars)."""
+    return [(p, load_table(p)) for p in sorted(CALIBRATION_DIR.glob("*.json"))]
+
+
+def table_for(radar, calibration: str | Path | CalibrationTable | None = None) -> tuple[CalibrationTable, str]:
+    """(table, where it came from) for `radar`: the given one, else the shipped table of its carrier and
+    range bin. Raises InputError saying how to make one when none matches."""
+    wf = radar.waveform
+    if isinstance(calibration, CalibrationTable):
+        return calibration, "given"
+    if calibration is not None:
+        return load_table(calibration), str(calibration)
+    for path, table in shipped_tables():
+        if table.matches(wf.carrier_hz, wf.range_resolution):
+            return table, f"shipped:{path.name}"
+    raise InputError(f"no calibration table for a {wf.carrier_hz / 1e9:g} GHz radar with {wf.range_resolution:.3g} m "
+                     "range bins; make one with `rtchannel bench --calibrate --radar RADAR.yaml --out DIR` and pass "
+                     "--calibration DIR/calibration.json")
+
+
+def parse_budget(accuracy) -> str | float:
+    """A budget name or a positive finite EMD [m/s] (strings like "0.1" become numbers)."""
+    if isinstance(accuracy, str) and accuracy in BUDGETS:
+        return accuracy
+    try:
+        value = float(accuracy)
+    except (TypeError, ValueError):
+        raise InputError(f"accuracy must be one of {', '.join(BUDGETS)} or an EMD in m/s, got {accuracy!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"accuracy must be a positive EMD in m/s, got {accuracy!r}")
+    return value
+
+
+def target(budget: str | float, table: CalibrationTable, activity: str | None) -> float | None:
+    """The EMD limit [m/s] of `budget` for `activity` (None for "exact", which is a setting, not a limit)."""
+    if budget == "exact":
+        return None
+    if budget == "balanced":
+        return table.row("default").error(activity)
+    if budget == "fast":
+        return FAST_FACTOR * table.row("default").error(activity)
+    return float(budget)
+
+
+def choose(budget: str | float, backend: str, table: CalibrationTable, activity: str | None = None) -> tuple[CalibrationRow, float | None]:
+    """(cheapest row of `backend` whose calibrated error for `activity` is within the budget, the target [m/s])."""
+    if backend not in {r.backend for r in table.rows}:
+        raise InputError(f"the calibration table for {table.radar} has no {backend} settings; --accuracy chooses "
+                         f"among: {', '.join(sorted({r.backend for r in table.rows if r.role != 'reference'}))}")
+    if budget == "exact":
+        return table.row("exact"), None
+    limit = target(budget, table, activity)
+    default = table.row("default")
+    # a row whose errors equal the default's to the last digit made the default's signatures (e.g. walls="auto"
+    # with isotropic antennas culls nothing): its other time is the machine's noise, not a saving
+    rows = [r for r in table.rows if r.backend == backend and r.error(activity) <= limit
+            and (r is default or r.emd_m_s != default.emd_m_s)]
+    if not rows:
+        best = min((r for r in table.rows if r.backend == backend), key=lambda r: r.error(activity))
+        raise InputError(f"no calibrated {backend} setting reaches {limit:.3f} m/s on {activity or 'every activity'} "
+                         f"(best: {best.label}, {best.error(activity):.3f} m/s); raise the budget or use exact")
+    return min(rows, key=lambda r: (r.s_per_sim_s, r.error(activity))), limit
+
+
+def resolve(accuracy, backend: str, radar, activity: str | None, options: dict,
+            calibration=None) -> tuple[dict, dict]:
+    """(backend options, record) for an accuracy budget: the chosen row's options with the user's explicit
+    `options` on top, and what to store with the result (budget, target, chosen row, calibrated error and
+    cost, table and its digest, overrides)."""
+    budget = parse_budget(accuracy)
+    if backend == "points":
+        raise InputError("--accuracy chooses among a mesh backend's settings; the points backend has none (its "
+                         "calibrated error is in the table's points row); use --backend facets")
+    table, source = table_for(radar, calibration)
+    row, limit = choose(budget, backend, table, activity)
+    chosen = dict(row.options)
+    overrides = {k: v for k, v in options.items() if k in chosen and chosen[k] != v}
+    record = {"budget": budget, "target_emd_m_s": limit, "activity": activity, "chosen": row.label,
+              "chosen_options": dict(row.options), "calibrated_emd_m_s": row.error(activity),
+              "calibrated_s_per_sim_s": row.s_per_sim_s, "calibration": source, "calibration_radar": table.radar,
+              "calibration_digest": table.digest(), "overrides": overrides}
+    return {**chosen, **options}, record

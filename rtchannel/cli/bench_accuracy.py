@@ -1,0 +1,77 @@
+"""`rtchannel bench --calibrate` and `--validate-accuracy`: the accuracy budget's table and its check."""
+from __future__ import annotations
+
+import json
+
+
+def bench_radar(name: str):
+    """(radar, name) of --radar: the seed's 2x2 system, the Glasgow preset, or a radar YAML file."""
+    from pathlib import Path
+
+    from rtchannel.cli.common import UserError
+    from rtchannel.radar import RadarConfig
+
+    if name == "seed":
+        return RadarConfig(), "seed 2x2 (24.125 GHz)"
+    if name == "glasgow":
+        return RadarConfig.glasgow(), "Radar.glasgow (5.8 GHz)"
+    path = Path(name)
+    if not path.is_file():
+        raise UserError(f"--radar: expected seed, glasgow or a radar YAML file, got {name!r}")
+    return RadarConfig.from_file(path), path.stem
+
+
+def _activities(args) -> tuple[str, ...]:
+    from processing.labels import ACTIVITIES
+    from rtchannel.cli.common import UserError
+
+    if not args.activities:
+        return ACTIVITIES
+    acts = tuple(a.strip() for a in args.activities.split(",") if a.strip())
+    bad = [a for a in acts if a not in ACTIVITIES]
+    if bad or not acts:
+        raise UserError(f"--activities: unknown activity {bad[0] if bad else ''!r}; choose from {', '.join(ACTIVITIES)}")
+    return acts
+
+
+def cmd_calibrate(args) -> int:
+    from tqdm import tqdm
+
+    from rtchannel.analysis.calibrate import calibrate, run_count, write_calibration
+    from rtchannel.cli.common import UserError
+
+    if args.out is None:
+        raise UserError("--calibrate needs --out DIR")
+    radar, name = bench_radar(args.radar)
+    acts = _activities(args)
+    with tqdm(total=run_count(acts), unit="run", disable=args.quiet or None) as bar:
+        table = calibrate(radar, name, acts, seeds=args.seeds, reference_seeds=args.reference_seeds or 4,
+                          progress=bar.update)
+    for p in write_calibration(table, args.out):
+        print(f"wrote {p}")
+    print((args.out / "calibration.md").read_text())
+    return 0
+
+
+def cmd_validate_accuracy(args) -> int:
+    from tqdm import tqdm
+
+    from rtchannel.accuracy import table_for
+    from rtchannel.analysis.accuracy_validation import held_out_motions, summary, validate, write_validation
+    from rtchannel.cli.common import UserError
+
+    if args.out is None:
+        raise UserError("--validate-accuracy needs --out DIR")
+    radar, name = bench_radar(args.radar)
+    table, source = table_for(radar, args.calibration)
+    motions = held_out_motions(_activities(args))
+    # exact is the reference's own setting: its error is the single-run floor by construction (not re-measured)
+    budgets = ("fast", "balanced", *(args.budget or ()))
+    with tqdm(total=len(motions) * (len(budgets) + 1), unit="run", disable=args.quiet or None) as bar:
+        rows = validate(radar, table, motions, budgets, seeds=args.seeds, reference_seeds=args.reference_seeds or 4,
+                        progress=bar.update)
+    meta = {"radar": name, "calibration": source, "seeds": args.seeds, "reference_seeds": args.reference_seeds or 4}
+    for p in write_validation(rows, args.out, meta):
+        print(f"wrote {p}")
+    print(json.dumps(summary(rows), indent=1))
+    return 0
