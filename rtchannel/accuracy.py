@@ -10,7 +10,10 @@ a user's radar at another carrier or bandwidth needs its own (`rtchannel bench -
 Budgets (`--accuracy`, per activity; an activity the table lacks takes the worst calibrated one):
 
 - ``exact``: the table's full-accuracy setting (full LOD, every frame traced, every path kept).
-- ``balanced``: no worse than today's default setting (the table's ``default`` row), as cheaply as possible.
+- ``balanced``: no worse than today's default setting (the table's ``default`` row), as cheaply as possible:
+  within the default's calibrated error plus its standard error over the calibration's seeds (one run's
+  speckle moves the error by as much as the settings differ, so a setting within one standard error of the
+  default cannot be told from it by the calibration).
 - ``fast``: within `FAST_FACTOR` times the default's error.
 - a number: within that many m/s EMD.
 
@@ -50,7 +53,17 @@ class CalibrationRow(BaseModel):
 
     def error(self, activity: str | None) -> float:
         """Calibrated EMD [m/s] for `activity` (the worst activity if it was not calibrated)."""
-        return self.emd_m_s.get(activity, max(self.emd_m_s.values())) if activity else max(self.emd_m_s.values())
+        return self.emd_m_s[self._key(activity)]
+
+    def sem(self, activity: str | None) -> float:
+        """Standard error [m/s] of `error(activity)` over the calibration's seeds (0 if unknown)."""
+        v = self.emd_sem_m_s.get(self._key(activity), 0.0)
+        return v if math.isfinite(v) else 0.0
+
+    def _key(self, activity: str | None) -> str:
+        if activity in self.emd_m_s:
+            return activity
+        return max(self.emd_m_s, key=self.emd_m_s.get)
 
 
 class CalibrationTable(BaseModel):
@@ -133,7 +146,8 @@ def target(budget: str | float, table: CalibrationTable, activity: str | None) -
     if budget == "exact":
         return None
     if budget == "balanced":
-        return table.row("default").error(activity)
+        default = table.row("default")
+        return default.error(activity) + default.sem(activity)
     if budget == "fast":
         return FAST_FACTOR * table.row("default").error(activity)
     return float(budget)

@@ -193,6 +193,7 @@ def write_calibration(table: CalibrationTable, out_dir) -> list:
     ax.axhline(table.row("default").error(None), color="k", lw=0.8, ls=":", label="default's worst-activity error")
     ax.set_xscale("log")
     ax.set_xlabel("wall time per simulated second [s]")
+    ax.set_yscale("log")  # the points row sits an order of magnitude above the mesh settings
     ax.set_ylabel("worst-activity p(v,t) EMD [m/s]")
     ax.set_title(f"calibration: {table.radar}; budgets chosen over all activities", fontsize=10)
     ax.grid(alpha=0.3, which="both")
