@@ -7,7 +7,11 @@ radar and written to a calibration table (JSON). Tables for the presets' radars 
 scales the modelling knobs depend on (the facet size against the wavelength, the range window in bins), so
 a user's radar at another carrier or bandwidth needs its own (`rtchannel bench --calibrate --radar FILE`).
 
-Budgets (`--accuracy`, per activity; an activity the table lacks takes the worst calibrated one):
+Budgets (`--accuracy`). A setting qualifies only when it meets the budget on every calibrated activity
+(each against that activity's target), not just on the motion's own: with ~15 candidates and a few seeds
+per activity, some setting looks as good as the default on one activity by the speckle draw alone, and on
+held-out motions such per-activity picks (e.g. a 5 fps trace rate for a sit-down at 5.8 GHz) missed the
+budget (docs/results.md). The record names the motion's activity; its target is the one reported.
 
 - ``exact``: the table's full-accuracy setting (full LOD, every frame traced, every path kept).
 - ``balanced``: no worse than today's default setting (the table's ``default`` row), as cheaply as possible:
@@ -154,7 +158,8 @@ def target(budget: str | float, table: CalibrationTable, activity: str | None) -
 
 
 def choose(budget: str | float, backend: str, table: CalibrationTable, activity: str | None = None) -> tuple[CalibrationRow, float | None]:
-    """(cheapest row of `backend` whose calibrated error for `activity` is within the budget, the target [m/s])."""
+    """(cheapest row of `backend` within the budget on every calibrated activity, the target [m/s] for
+    `activity`)."""
     if backend not in {r.backend for r in table.rows}:
         raise InputError(f"the calibration table for {table.radar} has no {backend} settings; --accuracy chooses "
                          f"among: {', '.join(sorted({r.backend for r in table.rows if r.role != 'reference'}))}")
@@ -162,14 +167,19 @@ def choose(budget: str | float, backend: str, table: CalibrationTable, activity:
         return table.row("exact"), None
     limit = target(budget, table, activity)
     default = table.row("default")
+    acts = list(default.emd_m_s)
+
+    def meets(r: CalibrationRow) -> bool:
+        return all(r.emd_m_s.get(a, math.inf) <= target(budget, table, a) for a in acts)
+
     # a row whose errors equal the default's to the last digit made the default's signatures (e.g. walls="auto"
     # with isotropic antennas culls nothing): its other time is the machine's noise, not a saving
-    rows = [r for r in table.rows if r.backend == backend and r.error(activity) <= limit
-            and (r is default or r.emd_m_s != default.emd_m_s)]
+    rows = [r for r in table.rows if r.backend == backend and meets(r) and (r is default or r.emd_m_s != default.emd_m_s)]
     if not rows:
         best = min((r for r in table.rows if r.backend == backend), key=lambda r: r.error(activity))
         raise InputError(f"no calibrated {backend} setting reaches {limit:.3f} m/s on {activity or 'every activity'} "
-                         f"(best: {best.label}, {best.error(activity):.3f} m/s); raise the budget or use exact")
+                         f"and the budget on every other calibrated activity (best on {activity or 'the worst'}: "
+                         f"{best.label}, {best.error(activity):.3f} m/s); raise the budget or use exact")
     return min(rows, key=lambda r: (r.s_per_sim_s, r.error(activity))), limit
 
 
