@@ -170,6 +170,21 @@ def _dd2_cis(t0, t1, t2):
 
 
 @numba.njit(cache=True, inline="always")
+def _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area, scale, eta, pec, thickness, wavelength, s_coef, xpd):
+    """(Lambertian diffuse amplitude, r_te, r_tm at the incidence angle) of one facet: incident direction k,
+    scattered direction u, unit normal n, area [m^2], radar-equation factor `scale`."""
+    cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
+    cos_s = min(max(nx * ux + ny * uy + nz * uz, 0.0), 1.0)
+    gamma = 1.0
+    r_te, r_tm = -1.0 + 0j, 1.0 + 0j
+    if not pec:
+        c2 = _te_fraction_one(kx, ky, kz, nx, ny, nz)
+        r_te, r_tm = _slab_one(cos_i, eta, thickness, wavelength)
+        gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
+    return scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area, 0.0)), r_te, r_tm
+
+
+@numba.njit(cache=True, inline="always")
 def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po,
                out_d, out_p):
     """Fused Lambertian `diffuse_sqrt_rcs` and (with po) `po_sqrt_rcs` x sqrt(1 - S^2), times the
@@ -186,17 +201,9 @@ def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, th
     kx, ky, kz = (c[0] - p_a[e, 0]) / ra, (c[1] - p_a[e, 1]) / ra, (c[2] - p_a[e, 2]) / ra
     ux, uy, uz = (p_b[e, 0] - c[0]) / rb, (p_b[e, 1] - c[1]) / rb, (p_b[e, 2] - c[2]) / rb
     nx, ny, nz = n[0], n[1], n[2]
-    cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
-    cos_s = min(max(nx * ux + ny * uy + nz * uz, 0.0), 1.0)
-    c2 = 0.5
-    gamma = 1.0
-    r_te, r_tm = -1.0 + 0j, 1.0 + 0j
-    if not pec:
-        c2 = _te_fraction_one(kx, ky, kz, nx, ny, nz)
-        r_te, r_tm = _slab_one(cos_i, eta, thickness, wavelength)
-        gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
     scale = wavelength / (FOUR_PI_1_5 * ra * rb)
-    out_d[e] = scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[b, f], 0.0))
+    out_d[e], r_te, r_tm = _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area[b, f], scale, eta, pec, thickness,
+                                        wavelength, s_coef, xpd)
     if not po:
         return ra, rb, kx, ky, kz, ux, uy, uz, 0.0, 1.0, r_te, r_tm, 0j
     hx, hy, hz = ux - kx, uy - ky, uz - kz  # u_tx + u_rx (facet -> antennas)
@@ -238,17 +245,9 @@ def _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavele
     kx, ky, kz = -ux_f, -uy_f, -uz_f
     ux, uy, uz = -kx_f, -ky_f, -kz_f
     nx, ny, nz = n[0], n[1], n[2]
-    cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
-    cos_s = min(max(nx * ux + ny * uy + nz * uz, 0.0), 1.0)
-    c2 = 0.5
-    gamma = 1.0
-    r_te, r_tm = -1.0 + 0j, 1.0 + 0j
-    if not pec:
-        c2 = _te_fraction_one(kx, ky, kz, nx, ny, nz)
-        r_te, r_tm = _slab_one(cos_i, eta, thickness, wavelength)
-        gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
     scale = wavelength / (FOUR_PI_1_5 * ra * rb)
-    out_d[e] = scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area[b, f], 0.0))
+    out_d[e], r_te, r_tm = _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area[b, f], scale, eta, pec, thickness,
+                                        wavelength, s_coef, xpd)
     if not po:
         return
     hx, hy, hz = ux - kx, uy - ky, uz - kz
