@@ -255,7 +255,8 @@ def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "poin
     radar = RadarConfig() if radar is None else radar
     validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     backend_options, record, stats = _budgeted(motion, radar, backend, backend_options, accuracy, calibration)
-    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
+    if record is not None:  # the table's options are checked like the user's
+        validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     if scene is not None:
         if backend in MESH_BACKENDS:
             backend_options["scene"] = scene
@@ -385,7 +386,8 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
     validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     union = union_radar(radars)
     backend_options, record, stats = _budgeted(motion, union, backend, backend_options, accuracy, calibration)
-    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
+    if record is not None:  # the table's options are checked like the user's
+        validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
     if scene is not None and backend in MESH_BACKENDS:
         backend_options["scene"] = scene
     t0 = time.perf_counter()

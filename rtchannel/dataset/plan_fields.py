@@ -19,6 +19,14 @@ def _within(v, lo: float, hi: float, name: str, unit: str = ""):
     return v
 
 
+def unique_names(items, what: str):
+    """`items` when their ``name`` attributes are distinct; InputError naming them (`what`: "link", ...) otherwise."""
+    names = [it.name for it in items]
+    if len(set(names)) != len(names):
+        raise InputError(f"{what} names must be unique, got {names}")
+    return items
+
+
 def for_activity(v, activity: str):
     """A per-activity setting's value for `activity` ('*' for any other; None if neither), or `v` itself."""
     return v.get(activity, v.get("*")) if isinstance(v, dict) else v

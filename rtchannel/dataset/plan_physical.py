@@ -10,7 +10,7 @@ from pydantic import Field, field_validator, model_validator
 from processing.dsp.signatures import DSPConfig
 from processing.errors import InputError
 from processing.radar.waveform import Waveform
-from rtchannel.dataset.plan_fields import _NAME, Scalar, _Model, _per_activity, _within, for_activity
+from rtchannel.dataset.plan_fields import _NAME, Scalar, _Model, _per_activity, _within, for_activity, unique_names
 from rtchannel.radar import Link, direction_angles
 
 class LinkSet(_Model):
@@ -22,10 +22,7 @@ class LinkSet(_Model):
     @field_validator("links")
     @classmethod
     def _unique(cls, v):
-        names = [link.name for link in v]
-        if len(set(names)) != len(names):
-            raise InputError(f"link names must be unique, got {names}")
-        return v
+        return unique_names(v, "link")
 
 
 def _seed_link_set() -> list[LinkSet]:

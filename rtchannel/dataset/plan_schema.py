@@ -12,7 +12,7 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 
 from processing.errors import InputError, one_line
 from rtchannel.body.scatterers import SCATTERER_NAMES
-from rtchannel.dataset.plan_fields import _NAME, Scalar, _Model, _per_activity, _within, for_activity  # noqa: F401
+from rtchannel.dataset.plan_fields import _NAME, Scalar, _Model, _per_activity, _within, for_activity, unique_names  # noqa: F401
 from rtchannel.dataset.plan_physical import LinkSet, PhysicalLayer, RoomDraw  # noqa: F401 - re-exported
 from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
@@ -226,10 +226,7 @@ class SignalLayer(_Model):
     @field_validator("gain_sets")
     @classmethod
     def _unique(cls, v):
-        names = [g.name for g in v]
-        if len(set(names)) != len(names):
-            raise InputError(f"gain set names must be unique, got {names}")
-        return v
+        return unique_names(v, "gain set")
 
 
 class Storage(_Model):
