@@ -256,7 +256,7 @@ def _static_free(caster, pos, patches: Patches, dirs, dists, n_slots: int) -> np
 _STATIC_KEPT = 64  # antenna positions per caster (~0.15 MB each for a room)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _near_box(pos, cent, open_, lo, hi):
     """[B, K] open segments pos -> cent[k] that meet the box lo[b]..hi[b] (slab test)."""
     n_b, n_k = open_.shape
@@ -278,7 +278,7 @@ def _near_box(pos, cent, open_, lo, hi):
     return out
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, nogil=True)
 def _cell_sums(vis_t, inverse, w_k, j, j1, w, fade, out):
     """out[f, c] = sum over kept patches i of cell c of vis(f, i) w_k[i], vis faded linearly between traced
     frames j[f], j1[f] with weight w[f] (the sparse product's order and arithmetic)."""

@@ -122,7 +122,7 @@ def _ray_one(i, sx, sy, sz, ex, ey, ez, stop, o, rays, bits, valid):
     valid[i] = t > 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def pack_rays(points, index, end, stop, cells, offsets, rays, bits, valid):
     """Embree ray records [N, 12] (float32 `rays`, its uint32 view `bits`) of segments start -> end [N, 3],
     start = points[index[i]] (or points[i] without index), shifted into cell offsets[cells[i]] and stopping
@@ -133,7 +133,7 @@ def pack_rays(points, index, end, stop, cells, offsets, rays, bits, valid):
                  stop[i] if stop.shape[0] > 1 else stop[0], offsets[cells[i]], rays, bits, valid)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def pack_direct(sources, s_idx, centroids, b, f, stop, offsets, rays, bits, valid):
     """`pack_rays` of the segments sources[s_idx] -> centroids[b, f] in cells b (read in place)."""
     for i in range(b.shape[0]):

@@ -260,7 +260,7 @@ def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db) -> 
                    delay_rates=rates if has_vel else None, link=name)
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, nogil=True)
 def _fill_paths(verts, vels, faces, fidx, pa, pb, g_trace, slot, nxt, w, has_vel, gains, delays, rates):
     """Per frame k and path p: gain interpolated between traced frames; centroid delay and its rate
     (NaN / 0 where the gain is 0). Fused so the [K, P] arrays are written once."""

@@ -112,13 +112,13 @@ def _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
                                    normal[0], normal[1], normal[2], r_te, r_tm))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _walls_serial(cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
     for e in range(cos_w.shape[0]):
         _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out)
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, nogil=True)
 def _walls_parallel(cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
     for e in numba.prange(cos_w.shape[0]):
         _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out)
@@ -267,7 +267,7 @@ def _pair_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thi
         _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, rev_d, rev_p)
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, nogil=True)
 def _facets_parallel(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
                      po, out_d, out_p, rev, rev_d, rev_p):
     for e in numba.prange(eb.shape[0]):
@@ -275,7 +275,7 @@ def _facets_parallel(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec,
                   po, out_d, out_p, rev, rev_d, rev_p)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _facets_serial(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
                    po, out_d, out_p, rev, rev_d, rev_p):
     for e in range(eb.shape[0]):
@@ -341,13 +341,13 @@ def _pattern_one(e, targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, o
     out[e] = np.sqrt(g0 * max(g, floor))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _pattern_serial(targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out):
     for e in range(targets.shape[0]):
         _pattern_one(e, targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out)
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, nogil=True)
 def _pattern_parallel(targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out):
     for e in numba.prange(targets.shape[0]):
         _pattern_one(e, targets, pos, frame, gauss, pa, pe, back, floor, g0, tiny, out)

@@ -65,8 +65,10 @@ antenna patterns (~0.2 us per facet path with PO, `facet_kernels`, reading the f
 """
 from __future__ import annotations
 
+import os
 import time
 import weakref
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -204,12 +206,27 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         meshes.append((np.asarray(v_c, float), np.asarray(f_c, np.int64), vel_c, False, True))
     double = double_bounce_pairs(double_bounce, walls)
     antennas = [link.antennas() for link in links]
-    parts = []
-    for verts, fcs, vels, direct_paths, image_paths in meshes:
+
+    def trace_mesh(mesh, mesh_clock):
+        verts, fcs, vels, direct_paths, image_paths = mesh
         found = _trace(scene, verts, fcs, trace_idx, sources, pairs, walls if image_paths else [], material,
-                       wavelength, po, batch_frames, direct_paths, clock, progress, diffuse_phases(seed, len(fcs)),
-                       double if image_paths else [], antennas)
-        parts.append((found, verts, vels, fcs))
+                       wavelength, po, batch_frames, direct_paths, mesh_clock, progress,
+                       diffuse_phases(seed, len(fcs)), double if image_paths else [], antennas)
+        return found, verts, vels, fcs
+
+    if len(meshes) == 1 or (os.cpu_count() or 1) < 2:
+        parts = [trace_mesh(m, clock) for m in meshes]
+    else:
+        # The direct paths (fine mesh) and the wall images (coarse mesh) are independent and cost about the
+        # same; their kernels and Embree calls drop the GIL, so the two meshes are traced side by side
+        # (each keeps its own caster and stage clock; the stage times of the two threads add up).
+        clocks = [_Clock({}) for _ in meshes]
+        with ThreadPoolExecutor(len(meshes)) as pool:
+            parts = list(pool.map(trace_mesh, meshes, clocks))
+        for c in clocks:
+            for k, v in c.timing.items():
+                timing[k] = timing.get(k, 0.0) + v
+        clock.t = time.perf_counter()
     out = {link.name: assemble([(p[0][li],) + p[1:] for p in parts], link.name, sources[pairs[li][0]],
                                sources[pairs[li][1]], walls, times, trace_idx, len(faces), min_relative_gain_db)
            for li, link in enumerate(links)}

@@ -68,7 +68,7 @@ def _segments_free(caster, cell, start, end, stop):
     return ~caster.occluded_cells(start, d, t, cell) & (t > 0)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _facing(normals, centroids, usable, sources):
     """(flat index into [S, B, F], s, b, f) of the usable facets facing each source: n . (p - c) > 0, summed
     in numpy einsum's order."""
@@ -88,7 +88,7 @@ def _facing(normals, centroids, usable, sources):
     return at[:n], ss[:n], bs[:n], fs[:n]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _wall_hits(centroids, normals, need, h_c, h_src, image, poly, edge_n):
     """(b [N], f [N], q [N, 3]) of the needed facets with h_c > 0 facing `image` whose reflection point q
     (on centroid -> image at h_c / (h_c + h_src)) is inside the convex polygon (`in_convex_polygon`'s edge
@@ -381,7 +381,7 @@ def check_body_clearance(times, vertices, faces, sources, min_distance: float = 
                     f"(minimum clearance {min_distance * 100:g} cm){MOVE_THE_PERSON}")
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _nearest_d2(vertices, p):
     """Squared distance [K] (m^2) from p [3] to the nearest vertex of each frame of vertices [K, V, 3], in
     one pass (no [K, V] temporaries; the test only picks frames to check)."""

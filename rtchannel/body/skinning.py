@@ -152,7 +152,7 @@ def blend_points(weights, rest: np.ndarray, mats: np.ndarray) -> np.ndarray:
 COMPILED_MIN_POINTS = 500  # avatar meshes have 1k-10k vertices
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, nogil=True)
 def _blend(indptr, indices, data, rest, mats, out):
     for f in numba.prange(mats.shape[0]):
         b = np.empty((3, 4))
@@ -183,7 +183,7 @@ def face_frames(v, faces):
     return normals, areas, degenerate, cent
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, nogil=True)
 def _face_frames(v, faces, min_area, normals, areas, degenerate, cent):
     for b in numba.prange(v.shape[0]):
         for f in range(faces.shape[0]):
