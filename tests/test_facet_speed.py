@@ -147,3 +147,23 @@ def test_facet_paths_through_embree_equal_the_mitsuba_route(monkeypatch):
         assert np.array_equal(fast[k].gains, slow[k].gains)
         assert np.array_equal(fast[k].delays, slow[k].delays, equal_nan=True)
         assert np.any(fast[k].ids >= load_avatar(LOD).n_faces)  # wall images took part
+
+
+def test_meshes_traced_side_by_side_equal_the_serial_route(monkeypatch):
+    """The direct-path mesh, the wall-image mesh and the clutter run in threads: the path sets are bit for bit
+    those of one thread (each keeps its own caster), and the stage times of all are reported."""
+    from rtchannel.backends import facets
+
+    m = _walk(7)
+    radar = RadarConfig(links=[Link(name="a", tx=(3.0, 0.0, 1.1)), Link(name="b", tx=(0.0, -3.0, 1.1))])
+    opts = dict(lod="5k", image_lod="2k", trace_fps=20.0, batch_frames=4)
+    timing = {}
+    side_by_side = facet_paths(m, radar, timing=timing, **opts)
+    monkeypatch.setattr(facets, "_side_by_side", lambda: False)
+    serial = facet_paths(m, radar, **opts)
+    for k in serial:
+        assert np.array_equal(side_by_side[k].ids, serial[k].ids)
+        assert np.array_equal(side_by_side[k].gains, serial[k].gains)
+        assert np.array_equal(side_by_side[k].delays, serial[k].delays, equal_nan=True)
+        assert np.any(serial[k].ids >= load_avatar("5k").n_faces)  # wall images (on the 2k mesh) took part
+    assert {"bvh", "rays", "gains", "assemble", "clutter"} <= set(timing) and all(v >= 0 for v in timing.values())

@@ -107,7 +107,7 @@ def test_caches_follow_antennas_radar_and_seed(scene_and_body):
     for radar, seed in ((RADAR, 0), (moved, 0), (RADAR, 1), (wide, 0), (RADAR, 0)):
         got = clutter.clutter_paths(rt, radar, m.times, verts, av.faces, idx, seed)
         _same(got, _reference(rt, radar, m.times, verts, av.faces, idx, seed))
-    caster = visibility.caster_for(rt, av.faces, verts, np.array([[3.0, 0.0, 1.1]]), 16)
+    caster = visibility.caster_for(rt, av.faces, verts, np.array([[3.0, 0.0, 1.1]]), 16, purpose="clutter")
     assert len(caster.clutter_static) >= 3  # one entry per antenna position seen
 
 

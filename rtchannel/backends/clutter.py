@@ -165,7 +165,7 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
         verts = (np.broadcast_to(patches.centroids[0], (1, 3, 3)).copy() if body_vertices is None
                  else np.asarray(body_vertices, float))
         faces = np.array([[0, 1, 2]]) if body_faces is None else np.asarray(body_faces)
-        caster = caster_for(rt_scene, faces, verts, antennas, batch_frames)
+        caster = caster_for(rt_scene, faces, verts, antennas, batch_frames, purpose="clutter")
         rays = [_patch_rays(pos, patches) for pos in antennas]
         n_slots = 1 if body_vertices is None else min(len(verts), caster.batch)
         open_ = [_static_free(caster, pos, patches, *r, n_slots) for pos, r in zip(antennas, rays)]

@@ -166,7 +166,8 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
             than this many dB below the link's strongest path (e.g. -40); None keeps every path.
         progress: optional callable receiving the number of traced frames done after each BVH batch.
         batch_frames: traced frames whose bodies share one BVH build (`visibility.FrameBatchCaster`).
-        timing: optional dict; wall time [s] is added under "clearance", "bvh", "rays", "gains", "assemble".
+        timing: optional dict; wall time [s] is added under "clearance", "bvh", "rays", "gains", "assemble"
+            (with an image mesh the two meshes are traced in two threads and their stage times add up).
         image_mesh: optional (vertices [K, Vc, 3], faces [Fc, 3], velocities or None) of a coarser mesh of
             the same body (Fc <= F) on which the wall-image paths are traced instead (ids f_c + F kind).
         seed: seed of the fixed random diffuse phase per facet (`diffuse_phases`); None: no random phase.
@@ -214,7 +215,7 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
                        diffuse_phases(seed, len(fcs)), double if image_paths else [], antennas)
         return found, verts, vels, fcs
 
-    if len(meshes) == 1 or (os.cpu_count() or 1) < 2:
+    if len(meshes) == 1 or not _side_by_side():
         parts = [trace_mesh(m, clock) for m in meshes]
     else:
         # The direct paths (fine mesh) and the wall images (coarse mesh) are independent and cost about the
@@ -393,19 +394,47 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         trace_idx = trace_frame_indices(motion.n_frames, motion.fps, trace_fps)
     used_walls = _used_walls(rt.walls, walls, links, radar, wall_cut_db, stats)
     stats.update(lod=lod, walls=[getattr(w, "name", "?") for w in used_walls], traced_frames=len(trace_idx))
-    paths = mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material, trace_idx,
-                       used_walls, po, min_relative_gain_db, progress, timing, batch_frames,
-                       image_mesh if used_walls else None, seed, _culled_double(double_bounce, stats))
-    if clutter and rt.static_meshes:
-        from rtchannel.backends.clutter import clutter_paths, merged
+    with ThreadPoolExecutor(1) as pool:
+        static = None
+        if clutter and rt.static_meshes:
+            # shadows need no more than the image LOD's body (2k by default; its BVH is 5x cheaper); the clutter
+            # is independent of the body's paths, so it runs beside them (its own caster, GIL-free kernels)
+            shadow_v, shadow_f = (image_mesh[0], image_mesh[1]) if image_mesh is not None else (verts, avatar.faces)
+            job = (rt, radar, motion.times, shadow_v[trace_idx], shadow_f, trace_idx, seed, batch_frames)
+            static = pool.submit(_timed_clutter, *job) if _side_by_side() else _Done(_timed_clutter(*job))
+        paths = mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material, trace_idx,
+                           used_walls, po, min_relative_gain_db, progress, timing, batch_frames,
+                           image_mesh if used_walls else None, seed, _culled_double(double_bounce, stats))
+        if static is not None:
+            from rtchannel.backends.clutter import merged
 
-        t1 = time.perf_counter()
-        # shadows need no more than the image LOD's body (2k by default; its BVH is 5x cheaper)
-        shadow_v, shadow_f = (image_mesh[0], image_mesh[1]) if image_mesh is not None else (verts, avatar.faces)
-        static = clutter_paths(rt, radar, motion.times, shadow_v[trace_idx], shadow_f, trace_idx, seed, batch_frames)
-        paths = {name: merged(ps, static[name]) for name, ps in paths.items()}
-        timing["clutter"] = timing.get("clutter", 0.0) + time.perf_counter() - t1
+            static, seconds = static.result()
+            paths = {name: merged(ps, static[name]) for name, ps in paths.items()}
+            timing["clutter"] = timing.get("clutter", 0.0) + seconds
     return paths
+
+
+def _side_by_side() -> bool:
+    """Whether independent parts (the two meshes, the clutter) run in threads: with two or more cores."""
+    return (os.cpu_count() or 1) >= 2
+
+
+class _Done:
+    """A finished result with a future's `result()`."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def result(self):
+        return self.value
+
+
+def _timed_clutter(*args) -> tuple[dict, float]:
+    """(`clutter.clutter_paths`(*args), its wall time [s])."""
+    from rtchannel.backends.clutter import clutter_paths
+
+    t0 = time.perf_counter()
+    return clutter_paths(*args), time.perf_counter() - t0
 
 
 

@@ -335,8 +335,10 @@ class _NumpyRoute:
 _CASTERS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
-def caster_for(scene, faces, vertices, sources, batch) -> FrameBatchCaster:
-    """A `FrameBatchCaster` with the scene's static geometry, reused while the motion fits its cells."""
+def caster_for(scene, faces, vertices, sources, batch, purpose: str = "paths") -> FrameBatchCaster:
+    """A `FrameBatchCaster` with the scene's static geometry, reused while the motion fits its cells; one per
+    body mesh and `purpose`, so that work running side by side (the clutter's shadows and the wall images on
+    the same coarse mesh) never shares a caster."""
     static = [(v, f) for _, v, f in scene.static_meshes]
     if not static and getattr(scene, "walls", None):
         static = [(w.polygon, np.array([[0, i, i + 1] for i in range(1, len(w.polygon) - 1)])) for w in scene.walls]
@@ -346,7 +348,7 @@ def caster_for(scene, faces, vertices, sources, batch) -> FrameBatchCaster:
     pts += [v.min(axis=0) for v, _ in static] + [v.max(axis=0) for v, _ in static]
     lo, hi = np.min(pts, axis=0), np.max(pts, axis=0)
     mine = _CASTERS.setdefault(scene, {})  # one per body mesh (the direct and the image LOD)
-    key = (batch, vertices.shape[1], len(faces))
+    key = (batch, vertices.shape[1], len(faces), purpose)
     cached = mine.get(key)
     if cached is not None and np.all(lo >= cached.lo) and np.all(hi <= cached.hi):
         return cached
