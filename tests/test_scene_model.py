@@ -6,8 +6,9 @@ import pytest
 from processing.errors import InputError
 from processing.radar.antenna import Isotropic, YagiBeam
 from rtchannel.backends.facets import LinkSpec
-from rtchannel.backends.scene_model import (RANGE_MARGIN_BINS, adaptive_trace_indices, fastest_speed,
-                                            fresnel_facet_m, lod_for_wavelength, median_edge_m, walls_in_view)
+from rtchannel.backends.scene_model import (RANGE_MARGIN_BINS, adaptive_trace_indices, aspect_rate_deg_s,
+                                            fastest_speed, fresnel_facet_m, lod_for_wavelength, median_edge_m,
+                                            walls_in_view)
 from rtchannel.backends.wall_images import PlanarWall
 
 C0 = 299_792_458.0
@@ -86,6 +87,41 @@ def test_fastest_speed_ignores_one_bad_vertex():
     assert np.allclose(fastest_speed(v), 1.0)
 
 
+def _plate(times, centre, angle_deg):
+    """Two triangles of a 10 cm square plate [K, 4, 3] at centres [K, 3], its normal turned by angle_deg [K]
+    about z from +x (toward a radar on the +x axis)."""
+    a = np.radians(angle_deg)
+    normal = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=-1)
+    side = np.stack([-np.sin(a), np.cos(a), np.zeros_like(a)], axis=-1)  # in-plane, horizontal
+    up = np.array([0.0, 0.0, 1.0])
+    corners = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
+    v = np.stack([centre + 0.05 * (i * side + j * up) for i, j in corners], axis=1)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])  # counter-clockwise seen from the normal's side
+    assert np.allclose(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])[:, :2] / 0.01, normal[:, :2])
+    return v, faces
+
+
+def test_aspect_rate_on_paper():
+    t = np.arange(61) / 60.0
+    radar = np.array([[5.0, 0.0, 0.0]])
+    # a plate at the origin turning at 30 deg/s about z (from 20 deg, away from the kink of |angle| at 0): its
+    # normal leaves the line of sight at 30 deg/s, up to the parallax of its triangles' centroids (4.7 cm off
+    # the axis at 5 m: < 1 %)
+    v, f = _plate(t, np.zeros((61, 3)), 20.0 + 30.0 * t)
+    assert np.allclose(aspect_rate_deg_s(t, v, f, radar), 30.0, rtol=0.01)
+    # a plate (turned 20 deg off the radar) sliding sideways at 1 m/s across the boresight at range R: the line
+    # of sight turns at v / R rad/s there (the far plate needs half the traced frames of the near one)
+    for r in (2.0, 4.0):
+        centre = np.stack([np.zeros(61), t - 0.5, np.zeros(61)], axis=-1)
+        v, f = _plate(t, centre, np.full(61, 20.0))
+        rate = aspect_rate_deg_s(t, v, f, np.array([[r, 0.0, 0.0]]))
+        assert rate[30] == pytest.approx(np.degrees(1.0 / r), rel=0.01)  # centroids 2.4 cm off the centre: ~d / R
+    # facing away from every antenna in both frames: no path, no rate
+    v, f = _plate(t, np.zeros((61, 3)), 180.0 + 30.0 * t)
+    assert np.all(aspect_rate_deg_s(t, v, f, radar) == 0.0)
+    assert np.all(np.isfinite(aspect_rate_deg_s(t[:2], v[:2], f, radar)))
+
+
 @pytest.fixture(scope="module")
 def short_walk():
     from rtchannel.motion.procedural import generate
@@ -109,3 +145,25 @@ def test_facets_report_what_the_scene_options_chose(short_walk):
     assert named.config["backend_stats"]["walls"] == ["floor"]
     with pytest.raises(InputError, match="no wall named 'ceiling'"):
         simulate(short_walk, RadarConfig(), backend="facets", walls="ceiling", clutter=False)
+
+
+def test_aspect_trace_step_traces_far_motion_coarser(short_walk):
+    """The same sideways walk traced by the aspect rule: 4 m from the radar gets fewer traced frames than 1.5 m;
+    one rule at a time, and a step must be positive."""
+    from rtchannel.backends.facets import facet_paths
+    from rtchannel.radar import Link, RadarConfig
+
+    walk = short_walk
+    counts = []
+    for x in (1.5, 4.0):  # the radar on the +x axis looks at the walk's line (along x) from its end: move it aside
+        radar = RadarConfig(links=[Link(name="a", tx=(0.0, -x, 1.0))])
+        st = {}
+        paths = facet_paths(walk, radar, scene="free_space", lod="2k", walls=False, trace_step_deg=10.0,
+                            stats=st)
+        assert np.all(np.isfinite(paths["a"].delays[np.isfinite(paths["a"].delays)]))
+        counts.append(st["traced_frames"])
+    assert 2 <= counts[1] < counts[0] < walk.n_frames
+    with pytest.raises(InputError, match="give one"):
+        facet_paths(walk, RadarConfig(), scene="free_space", lod="2k", trace_step_m=0.3, trace_step_deg=5.0)
+    with pytest.raises(InputError, match="trace_step_deg must be positive"):
+        facet_paths(walk, RadarConfig(), scene="free_space", lod="2k", walls=False, trace_step_deg=0.0)

@@ -305,7 +305,8 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
                 progress=None, velocity_method: str = "spline", timing: dict | None = None,
                 batch_frames: int = 16, image_lod: str | None = DEFAULT_IMAGE_LOD, seed: int | None = 0,
                 double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE, clutter: bool = True,
-                trace_step_m: float | None = None, wall_cut_db: float | None = DEFAULT_WALL_CUT_DB,
+                trace_step_m: float | None = None, trace_step_deg: float | None = None,
+                trace_max_gap_s: float = 1.0, wall_cut_db: float | None = DEFAULT_WALL_CUT_DB,
                 stats: dict | None = None) -> dict[str, PathSet]:
     """Persistent facet path sets (one per link) of the skinned avatar moving with `motion`.
 
@@ -321,7 +322,11 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         trace_fps: rate [Hz] of visibility/gain evaluation (None: every motion frame); a speed knob.
             Coarser than the motion only when below its frame rate.
         trace_step_m: instead of `trace_fps`, trace where the body's fastest vertex has moved this far [m]
-            since the last traced frame (`scene_model.adaptive_trace_indices`; at least once a second).
+            since the last traced frame (`scene_model.adaptive_trace_indices`; at least every `trace_max_gap_s`).
+        trace_step_deg: instead of `trace_fps`, trace where the angle between the facets' normals and their
+            lines of sight to the antennas has turned this far [deg] (`scene_model.aspect_rate_deg_s` on the
+            image mesh, or the mesh; at least once a second): far from the radar and in still phases coarser.
+        trace_max_gap_s: with `trace_step_m` or `trace_step_deg`, the longest time between traced frames [s].
         clutter: add the static clutter of the scene's walls, floor and furniture, shadowed by the body
             (`rtchannel.backends.clutter`); nothing to add in free space.
         walls: include first-order body-wall image paths: True (every wall), False, "auto" (the walls
@@ -386,10 +391,19 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     timing["skinning"] = timing.get("skinning", 0.0) + time.perf_counter() - t0
     links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
     material = SurfaceMaterial.from_skin(rt.skin, wf.carrier_hz)
+    if trace_step_m is not None and trace_step_deg is not None:
+        raise InputError("trace_step_m and trace_step_deg are two rules for the same trace rate: give one")
     if trace_step_m is not None:
         from rtchannel.backends.scene_model import adaptive_trace_indices, fastest_speed
 
-        trace_idx = adaptive_trace_indices(motion.times, fastest_speed(vels), trace_step_m)
+        trace_idx = adaptive_trace_indices(motion.times, fastest_speed(vels), trace_step_m, trace_max_gap_s)
+    elif trace_step_deg is not None:
+        from rtchannel.backends.scene_model import adaptive_trace_indices, aspect_rate_deg_s
+
+        probe_v, probe_f = (image_mesh[0], image_mesh[1]) if image_mesh is not None else (verts, avatar.faces)
+        sources = np.unique(np.concatenate([[lk.tx for lk in links], [lk.rx for lk in links]]), axis=0)
+        rate = aspect_rate_deg_s(motion.times, probe_v, probe_f, sources)
+        trace_idx = adaptive_trace_indices(motion.times, rate, trace_step_deg, trace_max_gap_s, name="trace_step_deg")
     else:
         trace_idx = trace_frame_indices(motion.n_frames, motion.fps, trace_fps)
     used_walls = _used_walls(rt.walls, walls, links, radar, wall_cut_db, stats)

@@ -24,6 +24,14 @@ measured by `rtchannel bench --calibrate` (docs/results.md, issue 26):
   ``trace_step_m`` places traced frames where the fastest vertex of the body (99th percentile of the
   vertex speeds, so one badly skinned vertex does not decide) has travelled `trace_step_m` metres since
   the last one: a fall's impact is traced densely, the still seconds before a sit-down sparsely.
+- **Trace rate from the aspect the radar sees.** What interpolation between traced frames misses is how a
+  facet's physical-optics lobe (width ~ lambda / (2 L)) sweeps past the antenna, i.e. how fast the angle
+  between a facet's normal and its line of sight turns, not how far the facet travels: a trunk pitching
+  forward in a sit-down turns its glints quickly while moving little (the distance rule measured badly
+  there), and the line of sight turns by v_perp / R, so the same motion far from the radar needs fewer
+  traced frames than near it. ``trace_step_deg`` places traced frames where that angle (the `ASPECT_QUANTILE`
+  of the facets facing an antenna, the coarser mesh's facets) has turned `trace_step_deg` degrees since the
+  last one.
 """
 from __future__ import annotations
 
@@ -35,6 +43,7 @@ from processing.errors import InputError
 
 LIMB_CURVATURE_M = 0.05  # radius of a forearm / calf: the body's tightest large surfaces (see module doc)
 RANGE_MARGIN_BINS = 3  # a boxcar range window's sidelobes are below -20 dB three bins from the peak
+ASPECT_QUANTILE = 0.9  # of the facets' aspect rates: the limbs' glints, not the few fastest facets of a hand
 DEFAULT_WALL_CUT_DB = -30.0  # a wall seen this far below every antenna's peak contributes below the display
 
 
@@ -140,14 +149,44 @@ def fastest_speed(velocities: np.ndarray, quantile: float = 0.99) -> np.ndarray:
     return np.quantile(speed, quantile, axis=1)
 
 
+def aspect_rate_deg_s(times: np.ndarray, vertices: np.ndarray, faces: np.ndarray, sources: np.ndarray,
+                      quantile: float = ASPECT_QUANTILE) -> np.ndarray:
+    """Per frame, the `quantile` over facets of how fast [deg/s] the angle between a facet's normal and its
+    line of sight to an antenna turns (the largest over `sources` [S, 3] m), for a mesh vertices [K, V, 3] (m)
+    with triangles `faces` at `times` [K] (s). Facets facing away from an antenna in both frames of a step
+    do not count (they carry no path from it)."""
+    from rtchannel.body.skinning import face_frames
+
+    times = np.asarray(times, float)
+    k = len(times)
+    if k < 2:
+        return np.zeros(k)
+    normals, _, degenerate, cent = face_frames(np.asarray(vertices, float), np.asarray(faces, np.int64))
+    dt = np.diff(times)
+    step_rate = np.zeros(k - 1)
+    for p in np.asarray(sources, float).reshape(-1, 3):
+        los = p - cent
+        cos = np.einsum("kfi,kfi->kf", normals, los) / np.maximum(np.linalg.norm(los, axis=-1), 1e-12)
+        angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+        facing = (cos[1:] > 0) | (cos[:-1] > 0)
+        facing &= ~(degenerate[1:] | degenerate[:-1])
+        turn = np.where(facing, np.abs(np.diff(angle, axis=0)), np.nan)
+        q = np.nan_to_num(np.nanquantile(np.where(facing.any(axis=1)[:, None], turn, 0.0), quantile, axis=1))
+        step_rate = np.maximum(step_rate, q / dt)
+    # per frame: the mean of its two neighbouring steps' rates (the ends take their one step)
+    return np.concatenate([[step_rate[0]], 0.5 * (step_rate[1:] + step_rate[:-1]), [step_rate[-1]]])
+
+
 def adaptive_trace_indices(times: np.ndarray, speed: np.ndarray, step_m: float,
-                           max_gap_s: float = 1.0) -> np.ndarray:
+                           max_gap_s: float = 1.0, name: str = "trace_step_m") -> np.ndarray:
     """Frames to trace: the first, the last, and each frame where the fastest vertex has moved `step_m`
     metres since the last traced one (its speed [K] m/s integrated over `times` [K] s), with at most
     `max_gap_s` between traced frames so that a body at rest still has its gains refreshed (visibility of
-    a still body changes when nothing moves, but the idle sway of a standing person does not stop)."""
+    a still body changes when nothing moves, but the idle sway of a standing person does not stop). Any
+    other rate works the same way (an aspect rate [deg/s] with a step in degrees; `name` is the option
+    named in the error)."""
     if not step_m > 0:
-        raise InputError(f"trace_step_m must be positive, got {step_m}")
+        raise InputError(f"{name} must be positive, got {step_m}")
     times = np.asarray(times, float)
     k = len(times)
     if k <= 2:
