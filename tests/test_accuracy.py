@@ -65,6 +65,9 @@ def test_budgets_choose_the_cheapest_row_within_the_target_on_every_activity():
                           emd_m_s=dict(t.row("default").emd_m_s))
     t2 = t.model_copy(update={"rows": [*t.rows, same]})
     assert choose("balanced", "facets", t2, "walk")[0].label == "better"  # not "same model" at 0.01 s
+    # a row kept for the record ("measured") is never chosen, however good and cheap
+    kept = t.rows[3].model_copy(update={"label": "record only", "role": "measured", "s_per_sim_s": 0.01})
+    assert choose("balanced", "facets", t.model_copy(update={"rows": [*t.rows, kept]}), "walk")[0].label == "better"
 
 
 def test_parse_budget():
@@ -177,6 +180,28 @@ def test_calibration_measures_rows_against_a_converged_reference(tmp_path):
     files = write_calibration(table, tmp_path)
     loaded = CalibrationTable.model_validate(json.loads(files[0].read_text()))
     assert loaded.digest() == table.digest()
+
+
+def test_several_motions_per_activity_must_all_meet_the_budget():
+    """Each calibration motion is a key of its own: a row that is the default's equal on one fall and far worse
+    on another does not qualify; merging a second run adds its motions' errors and keeps the first's costs."""
+    from rtchannel.analysis.calibrate import calibration_motions, merge_tables
+
+    ms = calibration_motions(("fall", "sit"), (0, 3))
+    assert list(ms) == ["fall", "sit", "fall (motion seed 3)", "sit (motion seed 3)"]
+    assert ms["fall"].params["seed"] == 0 and ms["fall (motion seed 3)"].params["seed"] == 3
+    t = _table()
+    more = t.model_copy(update={"rows": [r.model_copy(update={
+        "s_per_sim_s": 99.0,
+        "emd_m_s": {"walk (motion seed 3)": r.emd_m_s["walk"] * (2.0 if r.label == "better" else 1.0)}})
+        for r in t.rows], "motions": {"walk (motion seed 3)": "walk, seed 3"}})
+    merged = merge_tables(t, more)
+    assert [r.s_per_sim_s for r in merged.rows] == [r.s_per_sim_s for r in t.rows]
+    assert set(merged.row("default").emd_m_s) == {"walk", "sit", "walk (motion seed 3)"}
+    assert choose("balanced", "facets", t, "walk")[0].label == "better"
+    assert choose("balanced", "facets", merged, "walk")[0].label == "default"  # "better" fails the second walk
+    with pytest.raises(ValueError, match="same rows"):
+        merge_tables(t, t.model_copy(update={"rows": t.rows[:-1]}))
 
 
 def test_dataset_items_carry_the_budget_and_store_the_choice(tmp_path):

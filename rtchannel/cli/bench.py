@@ -90,6 +90,12 @@ def add_bench(sub) -> None:
                    "shipped one of the radar)")
     p.add_argument("--budget", action="append", metavar="EMD", type=finite_float,
                    help="with --validate-accuracy: also check this numeric budget [m/s] (repeatable)")
+    p.add_argument("--motion-seeds", default="0",
+                   help="with --calibrate: comma-separated generator seeds; each activity is calibrated on one "
+                   "motion per seed, and a setting must meet a budget on all of them (default 0)")
+    p.add_argument("--merge-into", type=Path, metavar="TABLE",
+                   help="with --calibrate: add this run's motions to an existing calibration.json of the same "
+                   "settings (its costs are kept)")
     p.add_argument("--seeds", type=positive_int, default=2,
                    help="with --calibrate: diffuse-phase seeds per setting and activity (default 2)")
     p.add_argument("--activities", help="with --calibrate/--validate-accuracy: comma-separated activities "

@@ -37,16 +37,27 @@ def _activities(args) -> tuple[str, ...]:
 def cmd_calibrate(args) -> int:
     from tqdm import tqdm
 
-    from rtchannel.analysis.calibrate import calibrate, run_count, write_calibration
+    from rtchannel.accuracy import load_table
+    from rtchannel.analysis.calibrate import calibrate, calibration_motions, merge_tables, run_count, write_calibration
     from rtchannel.cli.common import UserError
 
     if args.out is None:
         raise UserError("--calibrate needs --out DIR")
     radar, name = bench_radar(args.radar)
-    acts = _activities(args)
-    with tqdm(total=run_count(acts), unit="run", disable=args.quiet or None) as bar:
-        table = calibrate(radar, name, acts, seeds=args.seeds, reference_seeds=args.reference_seeds or 4,
-                          progress=bar.update)
+    try:
+        motion_seeds = tuple(int(s) for s in str(args.motion_seeds).split(","))
+    except ValueError:
+        raise UserError(f"--motion-seeds: expected comma-separated integers, got {args.motion_seeds!r}") from None
+    base = load_table(args.merge_into) if args.merge_into else None
+    motions = calibration_motions(_activities(args), motion_seeds)
+    with tqdm(total=run_count(motions), unit="run", disable=args.quiet or None) as bar:
+        table = calibrate(radar, name, tuple(motions), seeds=args.seeds, reference_seeds=args.reference_seeds or 4,
+                          motions=motions, progress=bar.update)
+    if base is not None:
+        try:
+            table = merge_tables(base, table)
+        except ValueError as e:
+            raise UserError(f"--merge-into {args.merge_into}: {e}") from None
     for p in write_calibration(table, args.out):
         print(f"wrote {p}")
     print((args.out / "calibration.md").read_text())
