@@ -228,14 +228,14 @@ def write_calibration(table: CalibrationTable, out_dir) -> list:
     ax = axes[1]
     grid = np.array([[r.emd_m_s.get(a, np.nan) for a in acts] for r in table.rows])
     im = ax.imshow(grid, cmap="viridis", aspect="auto")
-    ax.set_xticks(range(len(acts)), acts)
+    ax.set_xticks(range(len(acts)), [a.replace(" (motion seed ", "\nseed ").rstrip(")") for a in acts], fontsize=8)
     ax.set_yticks(range(len(table.rows)), [f"{i} {r.label[:48]}" for i, r in enumerate(table.rows, start=1)],
                   fontsize=7)
     for i in range(grid.shape[0]):
         for j in range(grid.shape[1]):
             ax.text(j, i, f"{grid[i, j]:.3f}", ha="center", va="center", fontsize=6, color="w")
     fig.colorbar(im, ax=ax, label="EMD [m/s]")
-    ax.set_title("error per activity", fontsize=10)
+    ax.set_title("error per calibration motion", fontsize=10)
     fig.tight_layout()
     p_png = out_dir / "calibration.png"
     savefig_atomic(fig, p_png, dpi=110)
