@@ -24,6 +24,10 @@ budget (docs/results.md). The record names the motion's activity; its target is 
 - ``fast``: within `FAST_FACTOR` times the default's error.
 - a number: within that many m/s EMD.
 
+When the default itself meets a budget, another setting is chosen only if it is at least `MIN_SAVING`
+(10 %) cheaper in the table: calibrated costs are wall times on a shared machine, and a smaller difference
+is within their noise.
+
 Rows of role ``measured`` are in the table for the record and never chosen: the gain cuts (-40, -30 dB
 relative to the link's strongest path). On the ten calibration motions the -30 dB cut was as good as the
 default or better (it drops 12-40 % of each frame's received power, among it the coarse mesh's worst wall
@@ -155,6 +159,10 @@ def parse_budget(accuracy) -> str | float:
     return value
 
 
+# a setting replaces the default (when the default meets the budget too) only if calibrated this much cheaper:
+# the seed table's own copy of the default model (walls="auto" with isotropic antennas culls nothing) was
+# timed 7 % apart from it, and "no clutter", 4 % cheaper at 24 GHz, missed on a real walk past the chair
+MIN_SAVING = 0.10
 BALANCED_SIGMAS = 2.0  # "balanced": the excess over the default allowed, in standard errors of the difference
 
 
@@ -197,6 +205,8 @@ def choose(budget: str | float, backend: str, table: CalibrationTable, activity:
         raise InputError(f"no calibrated {backend} setting reaches {limit:.3f} m/s on {activity or 'every activity'} "
                          f"and the budget on every other calibrated activity (best on {activity or 'the worst'}: "
                          f"{best.label}, {best.error(activity):.3f} m/s); raise the budget or use exact")
+    if default in rows:  # a saving within the timing noise is no saving: keep today's model
+        rows = [r for r in rows if r is default or r.s_per_sim_s <= (1.0 - MIN_SAVING) * default.s_per_sim_s]
     best = min(rows, key=lambda r: (r.s_per_sim_s, r.error(activity)))
     return best, target(budget, table, activity, best)
 

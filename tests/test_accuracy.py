@@ -22,7 +22,7 @@ def _table(carrier=24.125e9, res=0.599584916) -> CalibrationTable:
                        emd_m_s={"walk": 0.07, "sit": 0.10}, role="exact"),
         CalibrationRow(label="cheap", backend="facets", options={"lod": "2k"}, s_per_sim_s=0.10,
                        emd_m_s={"walk": 0.12, "sit": 0.29}),
-        CalibrationRow(label="better", backend="facets", options={"image_lod": "5k"}, s_per_sim_s=0.28,
+        CalibrationRow(label="better", backend="facets", options={"image_lod": "5k"}, s_per_sim_s=0.25,
                        emd_m_s={"walk": 0.088, "sit": 0.15}),
         CalibrationRow(label="walk only", backend="facets", options={"trace_fps": 5.0}, s_per_sim_s=0.2,
                        emd_m_s={"walk": 0.089, "sit": 0.33}),
@@ -65,6 +65,13 @@ def test_budgets_choose_the_cheapest_row_within_the_target_on_every_activity():
                           emd_m_s=dict(t.row("default").emd_m_s))
     t2 = t.model_copy(update={"rows": [*t.rows, same]})
     assert choose("balanced", "facets", t2, "walk")[0].label == "better"  # not "same model" at 0.01 s
+    # a saving within the timing noise (< MIN_SAVING) does not replace the default
+    close = CalibrationRow(label="5 % cheaper", backend="facets", options={"clutter": False}, s_per_sim_s=0.285,
+                           emd_m_s={"walk": 0.085, "sit": 0.15})
+    assert choose("balanced", "facets", t.model_copy(update={"rows": [t.rows[0], t.rows[1], close]}), "walk")[0].label \
+        == "default"
+    assert choose("balanced", "facets", t.model_copy(update={"rows": [t.rows[0], t.rows[1], close.model_copy(
+        update={"s_per_sim_s": 0.26})]}), "walk")[0].label == "5 % cheaper"
     # a row kept for the record ("measured") is never chosen, however good and cheap
     kept = t.rows[3].model_copy(update={"label": "record only", "role": "measured", "s_per_sim_s": 0.01})
     assert choose("balanced", "facets", t.model_copy(update={"rows": [*t.rows, kept]}), "walk")[0].label == "better"
