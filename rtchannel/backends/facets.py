@@ -391,21 +391,15 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     timing["skinning"] = timing.get("skinning", 0.0) + time.perf_counter() - t0
     links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
     material = SurfaceMaterial.from_skin(rt.skin, wf.carrier_hz)
-    if trace_step_m is not None and trace_step_deg is not None:
-        raise InputError("trace_step_m and trace_step_deg are two rules for the same trace rate: give one")
-    if trace_step_m is not None:
-        from rtchannel.backends.scene_model import adaptive_trace_indices, fastest_speed
-
-        trace_idx = adaptive_trace_indices(motion.times, fastest_speed(vels), trace_step_m, trace_max_gap_s)
-    elif trace_step_deg is not None:
-        from rtchannel.backends.scene_model import adaptive_trace_indices, aspect_rate_deg_s
-
-        probe_v, probe_f = (image_mesh[0], image_mesh[1]) if image_mesh is not None else (verts, avatar.faces)
-        sources = np.unique(np.concatenate([[lk.tx for lk in links], [lk.rx for lk in links]]), axis=0)
-        rate = aspect_rate_deg_s(motion.times, probe_v, probe_f, sources)
-        trace_idx = adaptive_trace_indices(motion.times, rate, trace_step_deg, trace_max_gap_s, name="trace_step_deg")
-    else:
+    probe = (image_mesh[0], image_mesh[1]) if image_mesh is not None else (verts, avatar.faces)
+    if trace_step_m is None and trace_step_deg is None:
         trace_idx = trace_frame_indices(motion.n_frames, motion.fps, trace_fps)
+    else:
+        from rtchannel.backends.scene_model import adaptive_frames
+
+        sources = np.unique(np.concatenate([[lk.tx for lk in links], [lk.rx for lk in links]]), axis=0)
+        trace_idx = adaptive_frames(motion.times, vels, probe, sources, trace_step_m, trace_step_deg,
+                                    trace_max_gap_s)
     used_walls = _used_walls(rt.walls, walls, links, radar, wall_cut_db, stats)
     stats.update(lod=lod, walls=[getattr(w, "name", "?") for w in used_walls], traced_frames=len(trace_idx))
     with ThreadPoolExecutor(1) as pool:
@@ -413,8 +407,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         if clutter and rt.static_meshes:
             # shadows need no more than the image LOD's body (2k by default; its BVH is 5x cheaper); the clutter
             # is independent of the body's paths, so it runs beside them (its own caster, GIL-free kernels)
-            shadow_v, shadow_f = (image_mesh[0], image_mesh[1]) if image_mesh is not None else (verts, avatar.faces)
-            job = (rt, radar, motion.times, shadow_v[trace_idx], shadow_f, trace_idx, seed, batch_frames)
+            job = (rt, radar, motion.times, probe[0][trace_idx], probe[1], trace_idx, seed, batch_frames)
             static = pool.submit(_timed_clutter, *job) if _side_by_side() else _Done(_timed_clutter(*job))
         paths = mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material, trace_idx,
                            used_walls, po, min_relative_gain_db, progress, timing, batch_frames,

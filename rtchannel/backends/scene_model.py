@@ -177,6 +177,19 @@ def aspect_rate_deg_s(times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     return np.concatenate([[step_rate[0]], 0.5 * (step_rate[1:] + step_rate[:-1]), [step_rate[-1]]])
 
 
+def adaptive_frames(times: np.ndarray, velocities: np.ndarray, probe: tuple, sources: np.ndarray,
+                    step_m: float | None, step_deg: float | None, max_gap_s: float = 1.0) -> np.ndarray:
+    """Traced frames of the facets backend's adaptive rules: `step_m` (fastest vertex of velocities [K, V, 3]
+    m/s) or `step_deg` (`aspect_rate_deg_s` of probe = (vertices [K, V', 3] m, faces) seen from sources [S, 3]
+    m); exactly one of the two."""
+    if (step_m is None) == (step_deg is None):
+        raise InputError("trace_step_m and trace_step_deg are two rules for the same trace rate: give one")
+    if step_m is not None:
+        return adaptive_trace_indices(times, fastest_speed(velocities), step_m, max_gap_s)
+    rate = aspect_rate_deg_s(times, probe[0], probe[1], sources)
+    return adaptive_trace_indices(times, rate, step_deg, max_gap_s, name="trace_step_deg")
+
+
 def adaptive_trace_indices(times: np.ndarray, speed: np.ndarray, step_m: float,
                            max_gap_s: float = 1.0, name: str = "trace_step_m") -> np.ndarray:
     """Frames to trace: the first, the last, and each frame where the fastest vertex has moved `step_m`
