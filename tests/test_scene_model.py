@@ -165,5 +165,8 @@ def test_aspect_trace_step_traces_far_motion_coarser(short_walk):
     assert 2 <= counts[1] < counts[0] < walk.n_frames
     with pytest.raises(InputError, match="give one"):
         facet_paths(walk, RadarConfig(), scene="free_space", lod="2k", trace_step_m=0.3, trace_step_deg=5.0)
+    with pytest.raises(InputError, match="trace_max_gap_s must be positive"):
+        facet_paths(walk, RadarConfig(), scene="free_space", lod="2k", walls=False, trace_step_deg=5.0,
+                    trace_max_gap_s=0.0)
     with pytest.raises(InputError, match="trace_step_deg must be positive"):
         facet_paths(walk, RadarConfig(), scene="free_space", lod="2k", walls=False, trace_step_deg=0.0)

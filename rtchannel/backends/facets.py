@@ -68,7 +68,7 @@ from __future__ import annotations
 import os
 import time
 import weakref
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -325,7 +325,8 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
             since the last traced frame (`scene_model.adaptive_trace_indices`; at least every `trace_max_gap_s`).
         trace_step_deg: instead of `trace_fps`, trace where the angle between the facets' normals and their
             lines of sight to the antennas has turned this far [deg] (`scene_model.aspect_rate_deg_s` on the
-            image mesh, or the mesh; at least once a second): far from the radar and in still phases coarser.
+            image mesh, or the mesh; at least every `trace_max_gap_s`): far from the radar and in still phases
+            coarser.
         trace_max_gap_s: with `trace_step_m` or `trace_step_deg`, the longest time between traced frames [s].
         clutter: add the static clutter of the scene's walls, floor and furniture, shadowed by the body
             (`rtchannel.backends.clutter`); nothing to add in free space.
@@ -408,7 +409,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
             # shadows need no more than the image LOD's body (2k by default; its BVH is 5x cheaper); the clutter
             # is independent of the body's paths, so it runs beside them (its own caster, GIL-free kernels)
             job = (rt, radar, motion.times, probe[0][trace_idx], probe[1], trace_idx, seed, batch_frames)
-            static = pool.submit(_timed_clutter, *job) if _side_by_side() else _Done(_timed_clutter(*job))
+            static = pool.submit(_timed_clutter, *job) if _side_by_side() else _done(_timed_clutter(*job))
         paths = mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material, trace_idx,
                            used_walls, po, min_relative_gain_db, progress, timing, batch_frames,
                            image_mesh if used_walls else None, seed, _culled_double(double_bounce, stats))
@@ -422,18 +423,18 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
 
 
 def _side_by_side() -> bool:
-    """Whether independent parts (the two meshes, the clutter) run in threads: with two or more cores."""
-    return (os.cpu_count() or 1) >= 2
+    """Whether independent parts (the two meshes, the clutter) run in threads: with two or more cores for this
+    process (a dataset worker pinned to one numba thread, one worker per core, keeps to its one core)."""
+    import numba
+
+    return (os.cpu_count() or 1) >= 2 and numba.get_num_threads() >= 2
 
 
-class _Done:
-    """A finished result with a future's `result()`."""
-
-    def __init__(self, value):
-        self.value = value
-
-    def result(self):
-        return self.value
+def _done(value) -> Future:
+    """A finished future holding `value` (the same interface as a submitted job's)."""
+    f = Future()
+    f.set_result(value)
+    return f
 
 
 def _timed_clutter(*args) -> tuple[dict, float]:
@@ -442,8 +443,6 @@ def _timed_clutter(*args) -> tuple[dict, float]:
 
     t0 = time.perf_counter()
     return clutter_paths(*args), time.perf_counter() - t0
-
-
 
 
 def _scene_lod(scene, wavelength: float) -> str:

@@ -1,7 +1,8 @@
 """What a scene needs modelled: the mesh backend's settings derived from the radar, the room and the motion.
 
-Three rules, each a switchable `facets` option (``lod="auto"``, ``walls="auto"``, ``trace_step_m``), each
-measured by `rtchannel bench --calibrate` (docs/results.md, issue 26):
+Four rules, each a switchable `facets` option (``lod="auto"``, ``walls="auto"``, ``trace_step_m``,
+``trace_step_deg``), each measured (`rtchannel bench --calibrate`, `benchmarks/bench_trace_rules.py`;
+docs/results.md, issue 26):
 
 - **Body LOD from the wavelength.** A faceted convex surface of curvature radius rho scatters like the smooth
   one when each facet's specular lobe (width ~ lambda / (2 L) for a facet of size L) is wider than the angle
@@ -184,6 +185,8 @@ def adaptive_frames(times: np.ndarray, velocities: np.ndarray, probe: tuple, sou
     m); exactly one of the two."""
     if (step_m is None) == (step_deg is None):
         raise InputError("trace_step_m and trace_step_deg are two rules for the same trace rate: give one")
+    if not max_gap_s > 0:
+        raise InputError(f"trace_max_gap_s must be positive, got {max_gap_s}")
     if step_m is not None:
         return adaptive_trace_indices(times, fastest_speed(velocities), step_m, max_gap_s)
     rate = aspect_rate_deg_s(times, probe[0], probe[1], sources)
