@@ -4,6 +4,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -256,3 +257,15 @@ def test_validation_checks_named_budgets_against_the_default_on_the_same_motion(
     assert summary(rows)["default"]["within_share"] is None
     files = write_validation(rows, tmp_path, {"radar": "seed", "seeds": 2, "reference_seeds": 2})
     assert all(f.exists() for f in files)
+
+
+def test_merge_into_a_table_of_other_settings_fails_before_the_run(tmp_path, capsys):
+    from rtchannel.cli import main
+
+    table = json.loads((Path(__file__).resolve().parents[1] / "rtchannel/calibration/seed_24GHz.json").read_text())
+    table["rows"] = table["rows"][:-1]
+    bad = tmp_path / "old.json"
+    bad.write_text(json.dumps(table))
+    assert main(["bench", "--calibrate", "--radar", "seed", "--merge-into", str(bad), "--out", str(tmp_path)]) != 0
+    assert "not this version's calibration settings" in capsys.readouterr().err
+    assert not (tmp_path / "calibration.json").exists()

@@ -38,7 +38,8 @@ def cmd_calibrate(args) -> int:
     from tqdm import tqdm
 
     from rtchannel.accuracy import load_table
-    from rtchannel.analysis.calibrate import calibrate, calibration_motions, merge_tables, run_count, write_calibration
+    from rtchannel.analysis.calibrate import (CANDIDATES, calibrate, calibration_motions, merge_tables, run_count,
+                                             write_calibration)
     from rtchannel.cli.common import UserError
 
     if args.out is None:
@@ -49,6 +50,9 @@ def cmd_calibrate(args) -> int:
     except ValueError:
         raise UserError(f"--motion-seeds: expected comma-separated integers, got {args.motion_seeds!r}") from None
     base = load_table(args.merge_into) if args.merge_into else None
+    if base is not None and [r.label for r in base.rows] != [c.label for c, _ in CANDIDATES]:
+        raise UserError(f"--merge-into {args.merge_into}: its settings are not this version's calibration "
+                        "settings; recalibrate without --merge-into")  # checked before the run, not after it
     motions = calibration_motions(_activities(args), motion_seeds)
     with tqdm(total=run_count(motions), unit="run", disable=args.quiet or None) as bar:
         table = calibrate(radar, name, tuple(motions), seeds=args.seeds, reference_seeds=args.reference_seeds or 4,
