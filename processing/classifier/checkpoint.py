@@ -2,12 +2,14 @@
 
 A checkpoint is a `torch.save` of plain dicts/lists/tensors, read with ``weights_only=True`` (no code
 runs while loading): format version, model config, preprocessing config, class names, link names
-(branch order), state dict, training history and metadata. Loading checks, in this order, so that a
+(branch order), state dict, training history and metadata. Version 2 is a seed ensemble
+(`processing.classifier.ensemble`): an empty state dict and a list "members" of state dicts of the same
+network; version 1 files are still read, and version-1 readers refuse version 2 instead of using one member. Loading checks, in this order, so that a
 damaged or hostile file gives one line naming the file and the field and never allocates more than the
 limits of `ModelConfig`: file size, the blob's keys and types, both configurations (pydantic bounds,
 including the parameter and activation limits), classes/links against the configuration, the preprocessing
-size against the network input, then every state-dict key, shape, dtype and value (finite) against a
-freshly built network.
+size against the network input, the members' total parameters, then every state-dict key, shape, dtype and
+value (finite) against a freshly built network.
 """
 from __future__ import annotations
 
@@ -18,12 +20,14 @@ import torch
 from pydantic import ValidationError
 
 from processing.atomic import atomic_path
-from processing.classifier.model import ModelConfig, build_model
+from processing.classifier.ensemble import MAX_MEMBERS, SoftVote, members_of
+from processing.classifier.model import MAX_PARAMETERS, ModelConfig, build_model
 from processing.classifier.predictor import Classifier
 from processing.classifier.preprocess import PreprocessConfig
 from processing.errors import CheckpointError, one_line
 
 CHECKPOINT_VERSION = 1
+ENSEMBLE_VERSION = 2
 MAX_CHECKPOINT_BYTES = 1 << 30  # the largest allowed network (5e7 float32 parameters) is 0.2 GB
 # Preprocessing fields added after checkpoints were already written, with the value that reproduces what
 # those models were trained on (a missing field must not silently switch an old model to new behaviour).
@@ -38,14 +42,19 @@ def save_checkpoint(path: str | Path, clf, history: dict | None = None, extra: d
     Raises CheckpointError (nothing written) if a weight is not finite: a diverged model is never saved.
     """
     path = Path(path)
-    state = clf.model.state_dict()
-    for key, t in state.items():
-        if t.is_floating_point() and not bool(torch.isfinite(t).all()):
-            raise CheckpointError(f"{path}: weight {key} holds non-finite values; the model was not saved")
-    blob = {"version": CHECKPOINT_VERSION, "model_config": clf.model.cfg.model_dump(mode="json"),
+    states = [m.state_dict() for m in members_of(clf.model)]
+    for state in states:
+        for key, t in state.items():
+            if t.is_floating_point() and not bool(torch.isfinite(t).all()):
+                raise CheckpointError(f"{path}: weight {key} holds non-finite values; the model was not saved")
+    vote = isinstance(clf.model, SoftVote)
+    blob = {"version": ENSEMBLE_VERSION if vote else CHECKPOINT_VERSION,
+            "model_config": clf.model.cfg.model_dump(mode="json"),
             "preprocess": clf.preprocess.model_dump(mode="json"), "classes": list(clf.classes),
-            "links": list(clf.links), "state_dict": state, "history": history or {},
+            "links": list(clf.links), "state_dict": {} if vote else states[0], "history": history or {},
             "meta": {**clf.meta, **(extra or {})}}
+    if vote:
+        blob["members"] = states
     with atomic_path(path) as tmp:
         torch.save(blob, tmp)
     return path
@@ -70,27 +79,55 @@ def _names(path: Path, value, field: str, n: int) -> list[str]:
     return list(value)
 
 
-def _check_state(path: Path, state: dict, model) -> None:
+def _check_state(path: Path, state, model, field: str = "state_dict") -> None:
+    if not isinstance(state, dict):
+        raise CheckpointError(f"{path}: {field} is a {type(state).__name__}, not a dict")
     want = model.state_dict()
     missing = [k for k in want if k not in state]
     extra = [k for k in state if k not in want]
     if missing:
-        raise CheckpointError(f"{path}: state_dict lacks {missing[0]!r}" + (f" (and {len(missing) - 1} more)"
-                                                                          if len(missing) > 1 else ""))
+        raise CheckpointError(f"{path}: {field} lacks {missing[0]!r}" + (f" (and {len(missing) - 1} more)"
+                                                                        if len(missing) > 1 else ""))
     if extra:
-        raise CheckpointError(f"{path}: state_dict has unexpected {str(extra[0])[:60]!r}"
+        raise CheckpointError(f"{path}: {field} has unexpected {str(extra[0])[:60]!r}"
                               + (f" (and {len(extra) - 1} more)" if len(extra) > 1 else ""))
     for key, ref in want.items():
         t = state[key]
         if not isinstance(t, torch.Tensor):
-            raise CheckpointError(f"{path}: state_dict {key!r} is a {type(t).__name__}, not a tensor")
+            raise CheckpointError(f"{path}: {field} {key!r} is a {type(t).__name__}, not a tensor")
         if tuple(t.shape) != tuple(ref.shape):
-            raise CheckpointError(f"{path}: state_dict {key!r} has shape {list(t.shape)} but the network needs "
+            raise CheckpointError(f"{path}: {field} {key!r} has shape {list(t.shape)} but the network needs "
                                   f"{list(ref.shape)}")
         if t.is_floating_point() != ref.is_floating_point() or t.is_complex():
-            raise CheckpointError(f"{path}: state_dict {key!r} has dtype {t.dtype}, expected {ref.dtype}")
+            raise CheckpointError(f"{path}: {field} {key!r} has dtype {t.dtype}, expected {ref.dtype}")
         if t.is_floating_point() and not bool(torch.isfinite(t).all()):
-            raise CheckpointError(f"{path}: state_dict {key!r} holds non-finite values")
+            raise CheckpointError(f"{path}: {field} {key!r} holds non-finite values")
+
+
+def _member_states(path: Path, blob: dict) -> list:
+    """The state dicts a blob holds: its state dict (version 1) or its members (version 2)."""
+    if blob["version"] == CHECKPOINT_VERSION:
+        return [blob["state_dict"]]
+    members = blob.get("members")
+    if not isinstance(members, list) or not 2 <= len(members) <= MAX_MEMBERS:
+        raise CheckpointError(f"{path}: an ensemble checkpoint needs a list 'members' of 2 to {MAX_MEMBERS} "
+                              "state dicts")
+    return members
+
+
+def _networks(path: Path, cfg: ModelConfig, states: list):
+    """The network (or `SoftVote` of networks) holding `states`, each checked before it is loaded."""
+    nets = [build_model(cfg)]
+    n_params = sum(p.numel() for p in nets[0].parameters())
+    if len(states) * n_params > MAX_PARAMETERS:  # checked before the other members are allocated
+        raise CheckpointError(f"{path}: {len(states)} members of {n_params:.3g} parameters exceed the limit of "
+                              f"{MAX_PARAMETERS:.3g}")
+    nets += [build_model(cfg) for _ in states[1:]]
+    for k, (net, state) in enumerate(zip(nets, states)):
+        _check_state(path, state, net, "state_dict" if len(states) == 1 else f"members[{k}]")
+        net.load_state_dict(state)
+        net.eval()
+    return nets[0] if len(nets) == 1 else SoftVote(nets)
 
 
 def load_checkpoint(path: str | Path):
@@ -116,8 +153,9 @@ def load_checkpoint(path: str | Path):
         raise
     except Exception as e:  # noqa: BLE001 - unpickling failures come in many types
         raise CheckpointError(f"{path} is not a classifier checkpoint ({type(e).__name__})") from None
-    if not isinstance(blob, dict) or blob.get("version") != CHECKPOINT_VERSION:
-        raise CheckpointError(f"{path} is not a version-{CHECKPOINT_VERSION} classifier checkpoint")
+    if not isinstance(blob, dict) or blob.get("version") not in (CHECKPOINT_VERSION, ENSEMBLE_VERSION):
+        raise CheckpointError(f"{path} is not a version-{CHECKPOINT_VERSION} or -{ENSEMBLE_VERSION} classifier "
+                              "checkpoint")
     for key, typ in _REQUIRED.items():
         if not isinstance(blob.get(key), typ):
             raise CheckpointError(f"{path}: {'missing' if key not in blob else 'invalid'} field {key!r} "
@@ -129,13 +167,11 @@ def load_checkpoint(path: str | Path):
                               f"takes {cfg.input_size[0]} x {cfg.input_size[1]}")
     classes = _names(path, blob["classes"], "classes", cfg.n_classes)
     links = _names(path, blob["links"], "links", cfg.n_branches)
-    model = build_model(cfg)
-    _check_state(path, blob["state_dict"], model)
-    model.load_state_dict(blob["state_dict"])
+    model = _networks(path, cfg, _member_states(path, blob))
     model.eval()
     meta = dict(blob["meta"]) if isinstance(blob.get("meta"), dict) else {}
     meta["history"] = blob["history"] if isinstance(blob.get("history"), dict) else {}
     return Classifier(model=model, preprocess=pre, classes=classes, links=links, meta=meta)
 
 
-__all__ = ["CHECKPOINT_VERSION", "MAX_CHECKPOINT_BYTES", "load_checkpoint", "save_checkpoint"]
+__all__ = ["CHECKPOINT_VERSION", "ENSEMBLE_VERSION", "MAX_CHECKPOINT_BYTES", "load_checkpoint", "save_checkpoint"]
