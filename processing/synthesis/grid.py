@@ -242,9 +242,13 @@ def _spread(t, pri, t_first, t_last, first_index, knots, y0, y1, m0, m1, g0, g1,
                     for r in range(n_run):
                         r0 = r1 = r2 = r3 = r4 = r5 = 0.0
                         i0 = i1 = i2 = i3 = i4 = i5 = 0.0
-                        for jj in range(starts[r], starts[r + 1]):
-                            y = yy[jj]
-                            vr, vi = cr[jj], ci[jj]
+                        # views indexed from 0: with indices read from `starts` numba cannot rule out negative
+                        # ones, wraps them, and the vectorised loop gathers instead of loading (11 % of the kernel)
+                        j0, j1 = starts[r], starts[r + 1]
+                        yv, crv, civ = yy[j0:j1], cr[j0:j1], ci[j0:j1]
+                        for k in range(j1 - j0):
+                            y = yv[k]
+                            vr, vi = crv[k], civ[k]
                             r0 += vr
                             i0 += vi
                             vr *= y
