@@ -61,8 +61,10 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     assert {("sit", "75_17.bvh"), ("stand", "75_17.bvh")} <= files
     assert sum(a == "walk" for a, _ in files) == 13
     assert {a for a, f in files if "opencap" in f} == {"sit", "stand"}
-    # falls in every direction the generator has: seed mod 3 = 0 forward, 1 left, 2 right
-    assert {it.motion["params"]["seed"] % 3 for it in items if it.activity == "fall"} == {0, 1, 2}
+    # falls in every direction the generator has: seed mod 3 = 0 forward, 1 left, 2 right, and backward by name
+    falls = [it.motion["params"] for it in items if it.activity == "fall"]
+    assert {p.get("fall_direction") or ("forward", "left", "right")[p["seed"] % 3] for p in falls} == \
+        {"forward", "left", "right", "backward"}
     # per-part RCS shares at 5.8 GHz on the area law (the preset's header): trunk up, shins and feet down
     for it in items[:2]:
         scale = it.gain_set["scale"]

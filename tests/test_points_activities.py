@@ -62,6 +62,19 @@ def test_fall_peak_mean_velocity_exceeds_sit():
     assert peak["fall"] > peak["sit"]
 
 
+def test_fall_toward_and_away_from_the_radar_has_the_sign_of_its_travel():
+    # a radar 3 m ahead (+x): the body falls toward it (forward) or away (backward). The mean radial
+    # velocity integrated over the fall is a power-weighted range change, within the body's: the feet move
+    # least, the head most (1.8 m forward; backward 0.9 m, with the pelvis 0.3 m); its sign is the direction of
+    # travel (positive = approaching)
+    radar = RadarConfig(links=[Link(name="r", tx=(3.0, 0.0, 1.1))])
+    moved = {}
+    for direction in ("forward", "backward"):
+        sig = simulate(generate("fall", seed=0, fall_direction=direction), radar).links["r"].signature
+        moved[direction] = float(np.sum(sig.mean_velocity) * (sig.time[1] - sig.time[0]))
+    assert 0.3 < moved["forward"] < 1.8 and -0.9 < moved["backward"] < -0.2
+
+
 @pytest.mark.parametrize("activity", ["fall", "walk", "stand", "sit", "pick"])
 def test_every_activity_gives_finite_signatures(activity):
     res = simulate(generate(activity, seed=2), RadarConfig().for_direction(7))

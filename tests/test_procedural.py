@@ -120,9 +120,9 @@ def test_walk_stance_foot_is_planted_and_arms_swing_against_legs():
     assert np.ptp(hand) > 0.15  # visible arm swing
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])  # forward, left and right falls
-def test_fall_drops_the_head_fast_and_ends_lying(seed):
-    m = generate("fall", seed=seed)
+@pytest.mark.parametrize("seed, direction", [(0, None), (1, None), (2, None), (0, "backward"), (4, "backward")])
+def test_fall_drops_the_head_fast_and_ends_lying(seed, direction):  # forward, left, right and backward falls
+    m = generate("fall", seed=seed, fall_direction=direction)
     head = joint(m, "Head")[:, 2]
     assert head[0] > 1.4 and head[-1] < 0.4
     assert joint(m, "Hips")[-1, 2] < 0.35
@@ -137,6 +137,27 @@ def test_fall_direction_depends_on_seed():
     ends = [joint(generate("fall", seed=s), "Head")[-1, :2] for s in (0, 1, 2)]
     assert ends[0][0] > 1.0  # forward along +x
     assert ends[1][1] > 0.8 and ends[2][1] < -0.8  # to the left (+y) and to the right
+    # a named direction overrides the seed's; None keeps it (earlier datasets' seeds make the same falls)
+    np.testing.assert_array_equal(generate("fall", seed=1, fall_direction="left").positions,
+                                  generate("fall", seed=1).positions)
+    assert joint(generate("fall", seed=1, fall_direction="forward"), "Head")[-1, 0] > 1.0
+
+
+def test_backward_fall_squats_onto_the_buttocks_then_lies_supine():
+    m = generate("fall", seed=3, fall_direction="backward", pad_before=0.0, pad_after=0.0)
+    hips, head, toes = joint(m, "Hips"), joint(m, "Head"), joint(m, "LeftToeBase")
+    # the buttocks land behind the feet (-x, the body faces +x), then the trunk rolls back: the hips are low
+    # while the head is still high; until then the toes stay where they stood, afterwards the legs slide out
+    sitting = np.flatnonzero(hips[:, 2] < 0.3)[0]
+    assert head[sitting, 2] > 0.6 and -0.5 < hips[sitting, 0] < -0.15
+    assert np.abs(toes[:sitting, :2] - toes[0, :2]).max() < 0.05
+    np.testing.assert_allclose(hips[sitting + 5:, 0], hips[-1, 0], atol=0.03)  # the pelvis stays put
+    assert toes[-1, 0] > toes[0, 0] + 0.3
+    # supine: pelvis and head near the floor, the head a trunk's length behind the pelvis
+    assert hips[-1, 2] < 0.25 and head[-1, 2] < 0.3
+    assert head[-1, 0] < hips[-1, 0] - 0.5 and abs(head[-1, 1]) < 0.1
+    # no body part below the floor (joint centres at least a few cm up, the skin radius)
+    assert m.positions[..., 2].min() > 0.0
 
 
 @pytest.mark.parametrize("activity", ["sit", "stand"])

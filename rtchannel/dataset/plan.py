@@ -211,9 +211,13 @@ def _motion_variants(plan: Plan, fetch: bool = True) -> list[tuple[str, str, str
                     err = e.errors()[0]
                     raise InputError(f"motion.sources.{si}.params.{'.'.join(map(str, err['loc'])) or '(root)'}: "
                                      f"{err['msg']} (drawn value {err.get('input')!r})") from None
-                # generator seed (mod 3) = fall direction 0 forward, 1 left, 2 right, cycled over the variants
-                fall = ("forward", "left", "right").index(src.fall_directions[v % len(src.fall_directions)])
+                # generator seed (mod 3) = fall direction 0 forward, 1 left, 2 right, cycled over the variants;
+                # a backward fall is named in the parameters (the seed's residue stays 0)
+                direction = src.fall_directions[v % len(src.fall_directions)]
+                fall = ("forward", "left", "right").index(direction) if direction != "backward" else 0
                 gen_seed = 3 * int(rng.integers(0, 2 ** 20)) + fall
+                if act == "fall" and direction == "backward":
+                    params["fall_direction"] = "backward"
                 base = {"kind": "procedural", "activity": act, "params": {**params, "seed": gen_seed}}
                 out.append((f"{act}-{si:02d}-{v:04d}", act, f"procedural:{act}#{si}.{v}", f"procedural:{act}", base))
         else:

@@ -34,7 +34,7 @@ class Source(_Model):
     options: dict[str, Any] = Field(default_factory=dict, description="files: load_motion keyword arguments")
     trim: tuple[float, float | None] | None = Field(None, description="files: (t0, t1) seconds of each file to "
                                                     "keep (t1 null = to the end), e.g. one part of a take")
-    fall_directions: list[Literal["forward", "left", "right"]] = Field(
+    fall_directions: list[Literal["forward", "left", "right", "backward"]] = Field(
         ["forward", "left", "right"], min_length=1, description="procedural fall: directions the variants "
         "cycle through")
 

@@ -28,7 +28,7 @@ Biomechanical sources for the numbers used:
 from __future__ import annotations
 
 import numpy as np
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -84,6 +84,10 @@ class ProceduralParams(BaseModel):
                                         "at the bottom (None: PICK_HOLD, 0.13)")
     arm_swing: float = Field(1.0, ge=0, le=2, description="walk: factor on the arm swing (older people swing "
                              "their arms less, at any speed)")
+    # None keeps the seed's choice (seed mod 3: forward, left, right), so the seeds of earlier datasets make
+    # the same falls; "backward" exists only by name
+    fall_direction: Literal["forward", "left", "right", "backward"] | None = Field(
+        None, description="fall: direction (None: from the seed, seed mod 3 = forward, left, right)")
 
     @model_validator(mode="after")
     def _cadence(self) -> "ProceduralParams":
@@ -139,7 +143,7 @@ def generate(activity: str, params: ProceduralParams | None = None, **overrides)
         t = _times(p, duration)
         u = (t - p.pad_before) / duration
         if activity == "fall":
-            rot, pos = _fall(rig, u, rng, direction=("forward", "left", "right")[p.seed % 3])
+            rot, pos = _fall(rig, u, rng, direction=p.fall_direction or FALL_DIRECTIONS[p.seed % 3])
         elif activity == "pick":
             rot, pos = _pick(rig, u, rng, PICK_HOLD if p.hold_fraction is None else p.hold_fraction)
         else:
@@ -271,6 +275,18 @@ _FALL_SIDE = dict(  # crouching while tipping sideways onto the hip, then lying 
     head=(0, 3, 10, 10, 5, 0), foot=(0, 0, 10, 20, 15, 10),
     near_flex=(0, 10, 20, 20, 15, 10), near_abd=(8, 40, 90, 130, 160, 178), near_elbow=(15, 15, 10, 15, 20, 25),
     far_flex=(0, 10, 20, 30, 30, 30), far_abd=(8, 20, 30, 20, 10, 8), far_elbow=(15, 30, 40, 40, 40, 40))
+# Backward (Hsiao & Robinovitch 1998, J Biomech 31:1-9: in backward falls people squat, land on the pelvis,
+# reach back with the arms and tuck the chin; slips, which throw the feet forward, mostly end backward or
+# sideways, Smeesters et al. 2001, J Biomech 34:589-595): knees and hips flex while the trunk leans forward to
+# brake, impact on the buttocks (u ~ 0.6), then the trunk rolls back to supine with the legs out.
+_FALL_BACKWARD = dict(  # the hip below the knee at landing: the thigh pitched back past horizontal (< -90)
+    roll=(0, 0, 0, 0, 0, 0), head_roll=(0, 0, 0, 0, 0, 0),
+    shank=(0, 15, 45, -15, -50, -85), thigh=(0, -25, -70, -135, -110, -92), trunk=(0, 6, 25, 15, -40, -88),
+    head=(0, 8, 30, 25, -20, -80), foot=(0, 5, 20, 0, -30, -70),
+    near_flex=(0, -15, -35, -45, -30, -10), near_abd=(8, 20, 30, 35, 40, 45), near_elbow=(15, 12, 10, 15, 30, 40),
+    far_flex=(0, -15, -35, -45, -30, -10), far_abd=(8, 20, 30, 35, 40, 45), far_elbow=(15, 12, 10, 15, 30, 40))
+_BACKWARD_LANDING_U = 0.62  # the buttocks reach the floor (key 0.7), the pelvis anchored from here to 0.72
+FALL_DIRECTIONS = ("forward", "left", "right", "backward")  # the first three in the seed's order (mod 3)
 # Joint centre to the skin that can touch the floor [m, for 1.75 m].
 _CONTACT_RADII = {
     "Hips": 0.10, "LeftUpLeg": 0.10, "RightUpLeg": 0.10, "LeftLeg": 0.05, "RightLeg": 0.05,
@@ -282,11 +298,13 @@ _CONTACT_RADII = {
 
 def _fall(rig: Rig, u, rng, direction: str):
     """Topple from standing to lying: ``forward`` onto hands and knees, then prone; ``left``/``right``
-    sideways onto the hip, then onto the side. The toes stay where they stood and the lowest skin point
-    rests on the floor, so the body is always supported (Hsiao & Robinovitch 1998)."""
+    sideways onto the hip, then onto the side; ``backward`` squatting onto the buttocks, then supine. The toes
+    stay where they stood (in a backward fall until the buttocks land; then the pelvis stays and the legs
+    slide out) and the lowest skin point rests on the floor, so the body is always supported (Hsiao &
+    Robinovitch 1998)."""
     s = rig.height / NOMINAL_HEIGHT_M
     n = len(u)
-    table = _FALL_FORWARD if direction == "forward" else _FALL_SIDE
+    table = {"forward": _FALL_FORWARD, "backward": _FALL_BACKWARD}.get(direction, _FALL_SIDE)
     # Seed variation of the key poses (not of the start and end postures' support geometry).
     k = {name: np.asarray(v, float) * np.r_[1.0, np.full(len(v) - 2, _jitter(rng, 0.08)), 1.0]
          for name, v in table.items()}
@@ -316,6 +334,11 @@ def _fall(rig: Rig, u, rng, direction: str):
     rot, pos = km.pose(rig, n, glob, loc, np.zeros((n, 3)))
     toes = [rig.index("LeftToeBase"), rig.index("RightToeBase")]
     anchor = pos[:, toes, :2].mean(axis=1)
+    if direction == "backward":  # once the buttocks land the pelvis stays put and the legs slide out ahead
+        hips = pos[:, rig.index("Hips"), :2]
+        land = min(int(np.searchsorted(u, _BACKWARD_LANDING_U)), n - 1)
+        w = step(u, _BACKWARD_LANDING_U, _BACKWARD_LANDING_U + 0.1)[:, None]
+        anchor = (1 - w) * anchor + w * (hips + anchor[land] - hips[land])
     radii = {name: r * s for name, r in _CONTACT_RADII.items()}
     shift = np.column_stack([anchor[0] - anchor, km.ground_lift(rig, pos, radii, tau=0.006 * s)])
     return rot, pos + shift[:, None, :]
