@@ -70,4 +70,9 @@ def test_facets_in_the_room_carry_the_clutter_and_free_space_none():
     from rtchannel.backends.clutter import CLUTTER_ID_BASE
 
     assert (with_c.ids >= CLUTTER_ID_BASE).sum() > 50 and not (without.ids >= CLUTTER_ID_BASE).any()
+    # the clutter's columns follow the body's, which are the clutter-free run's bit for bit
+    n = without.n_paths
+    assert not (with_c.ids[:n] >= CLUTTER_ID_BASE).any() and (with_c.ids[n:] >= CLUTTER_ID_BASE).all()
+    for field in ("delays", "gains", "delay_rates", "ids"):
+        assert np.array_equal(getattr(with_c, field)[..., :n], getattr(without, field), equal_nan=True)
     assert not (free.ids >= CLUTTER_ID_BASE).any()

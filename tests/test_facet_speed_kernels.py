@@ -231,3 +231,21 @@ def test_merged_equals_the_checked_concatenation():
     assert got.link == "r" and a.n_paths == d.shape[1]  # the inputs are left alone
     with pytest.raises(ValueError, match="frame times"):
         merged(a, PathSet(times=t + 1, delays=d[:, :5], gains=g[:, :5], ids=np.arange(5), link="r"))
+
+
+def test_assemble_appends_an_extra_path_set_like_merged():
+    # a link on which no facet is ever visible still carries the extra (clutter) paths, after the absent
+    # path; an extra at other frame times is refused
+    t, d, g = _pathset(k=6, p=4)
+    extra = PathSet(times=t, delays=d, gains=g, ids=100 + np.arange(4), link="r")
+    faces = np.array([[0, 1, 2]])
+    verts = np.zeros((6, 3, 3))
+    args = ("r", np.zeros(3), np.zeros(3), [], t, np.arange(6), 1, None)
+    alone = facet_assemble.assemble([({}, verts, None, faces)], *args)
+    got = facet_assemble.assemble([({}, verts, None, faces)], *args, extra=extra)
+    ref = merged(alone, extra)
+    for field in ("delays", "gains", "ids", "delay_rates"):
+        assert np.array_equal(getattr(got, field), getattr(ref, field), equal_nan=True)
+    with pytest.raises(ValueError, match="frame times"):
+        facet_assemble.assemble([({}, verts, None, faces)], *args,
+                                extra=PathSet(times=t + 1, delays=d, gains=g, ids=np.arange(4), link="r"))

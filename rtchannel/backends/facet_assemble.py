@@ -198,11 +198,14 @@ def merge_batches(batches: list[list[dict]], n_links: int) -> list[dict]:
     return out
 
 
-def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db) -> PathSet:
+def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db, extra: PathSet | None = None) -> PathSet:
     """Dense persistent PathSet of one link.
 
     parts: list of (found {kind: (slot, facet, gain)}, vertices [K, V, 3], velocities [K, V, 3] or None,
-    faces [T, 3]); path ids are facet + id_faces * kind (facets of every part index below id_faces)."""
+    faces [T, 3]); path ids are facet + id_faces * kind (facets of every part index below id_faces).
+    extra: a path set of the same link at `times` (the clutter) whose paths follow the facets' columns,
+    untouched by `min_db`: the result equals `clutter.merged(facets, extra)` without copying the facets'
+    arrays a second time."""
     k, n_slots = len(times), len(trace_idx)
     cols = []  # (part index, kind, facet ids [P], g_trace [slots, P])
     for pi, (found, _, _, faces) in enumerate(parts):
@@ -220,14 +223,22 @@ def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db) -> 
         floor = top * 10 ** (min_db / 20) if min_db is not None else 0.0
         keeps = [(p > 0) & (p >= floor) for p in peaks]
         cols = [(pi, kind, ids[m], gt[:, m]) for (pi, kind, ids, gt), m in zip(cols, keeps) if m.any()]
+    if extra is not None and (extra.delays.shape[0] != k or not np.array_equal(extra.times, times)):
+        raise ValueError("the extra path set must share the link's frame times")
     if not cols:  # nothing ever visible: one absent path keeps the output well-defined
-        return PathSet(times=times, delays=np.full((k, 1), np.nan), gains=np.zeros((k, 1), complex),
-                       ids=np.array([0]), delay_rates=np.zeros((k, 1)), link=name)
+        absent = PathSet(times=times, delays=np.full((k, 1), np.nan), gains=np.zeros((k, 1), complex),
+                         ids=np.array([0]), delay_rates=np.zeros((k, 1)), link=name)
+        if extra is None:
+            return absent
+        from rtchannel.backends.clutter import merged
+
+        return merged(absent, extra)
     has_vel = all(p[2] is not None for p in parts)
     n_p = sum(c[2].size for c in cols)
-    gains = np.empty((k, n_p), complex)
-    delays = np.empty((k, n_p))
-    rates = np.empty((k, n_p))
+    n_x = 0 if extra is None else extra.delays.shape[1]
+    gains = np.empty((k, n_p + n_x), complex)
+    delays = np.empty((k, n_p + n_x))
+    rates = np.empty((k, n_p + n_x))
     t_tr = times[trace_idx]
     slot = np.clip(np.searchsorted(t_tr, times, side="right") - 1, 0, max(len(t_tr) - 2, 0))
     nxt = np.minimum(slot + 1, len(t_tr) - 1)
@@ -256,8 +267,13 @@ def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db) -> 
         _fill_paths(verts, vel, np.asarray(faces, np.int64), fidx, pa, pb, g_trace, slot, nxt, wgt, has_vel,
                     gains[:, sl], delays[:, sl], rates[:, sl])
         all_ids.append(fidx + id_faces * kinds)
+    if extra is not None:  # its columns after the facets' (where `merged` puts them); rates 0 where it has none
+        gains[:, n_p:], delays[:, n_p:] = extra.gains, extra.delays
+        rates[:, n_p:] = 0.0 if extra.delay_rates is None else extra.delay_rates
+        all_ids.append(extra.ids)
+    with_rates = has_vel or (extra is not None and extra.delay_rates is not None)  # `_fill_paths` wrote 0 without
     return PathSet(times=times, delays=delays, gains=gains, ids=np.concatenate(all_ids),
-                   delay_rates=rates if has_vel else None, link=name)
+                   delay_rates=rates if with_rates else None, link=name)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)

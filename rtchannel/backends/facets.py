@@ -151,7 +151,7 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
                walls=(), po: bool = True, min_relative_gain_db: float | None = None,
                progress=None, timing: dict | None = None, batch_frames: int = 16,
                image_mesh: tuple | None = None, seed: int | None = 0,
-               double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE) -> dict[str, PathSet]:
+               double_bounce: bool | str = DEFAULT_DOUBLE_BOUNCE, extra=None) -> dict[str, PathSet]:
     """Facet path sets of any deforming triangle mesh (the engine behind `facet_paths`).
 
     Args:
@@ -173,6 +173,8 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         seed: seed of the fixed random diffuse phase per facet (`diffuse_phases`); None: no random phase.
         double_bounce: double-bounce image paths (see `double_bounce_pairs`): False, True (= "same": both
             antennas mirrored in the same wall, every wall), "pairs" (any two walls), "floor" or a wall name.
+        extra: optional callable (link name -> PathSet at `times` or None) whose paths are appended to the
+            link's (the static clutter; called once tracing is done, so it may wait for a thread).
 
     Returns:
         {link name: persistent PathSet}; ids as in the module doc (F = number of faces).
@@ -229,7 +231,8 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
                 timing[k] = timing.get(k, 0.0) + v
         clock.t = time.perf_counter()
     out = {link.name: assemble([(p[0][li],) + p[1:] for p in parts], link.name, sources[pairs[li][0]],
-                               sources[pairs[li][1]], walls, times, trace_idx, len(faces), min_relative_gain_db)
+                               sources[pairs[li][1]], walls, times, trace_idx, len(faces), min_relative_gain_db,
+                               None if extra is None else extra(link.name))
            for li, link in enumerate(links)}
     clock("assemble")
     return out
@@ -410,15 +413,13 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
             # is independent of the body's paths, so it runs beside them (its own caster, GIL-free kernels)
             job = (rt, radar, motion.times, probe[0][trace_idx], probe[1], trace_idx, seed, batch_frames)
             static = pool.submit(_timed_clutter, *job) if _side_by_side() else _done(_timed_clutter(*job))
+        # the clutter's columns are written into each link's arrays as they are assembled (no second copy)
+        extra = None if static is None else (lambda name: static.result()[0][name])
         paths = mesh_paths(rt, motion.times, verts, avatar.faces, vels, links, wf.wavelength, material, trace_idx,
                            used_walls, po, min_relative_gain_db, progress, timing, batch_frames,
-                           image_mesh if used_walls else None, seed, _culled_double(double_bounce, stats))
+                           image_mesh if used_walls else None, seed, _culled_double(double_bounce, stats), extra)
         if static is not None:
-            from rtchannel.backends.clutter import merged
-
-            static, seconds = static.result()
-            paths = {name: merged(ps, static[name]) for name, ps in paths.items()}
-            timing["clutter"] = timing.get("clutter", 0.0) + seconds
+            timing["clutter"] = timing.get("clutter", 0.0) + static.result()[1]
     return paths
 
 
