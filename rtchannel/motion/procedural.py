@@ -18,7 +18,9 @@ Biomechanical sources for the numbers used:
   (Jian et al. 1993, Gait Posture 1:9).
 * Falls: Hsiao & Robinovitch (1998), J. Biomech. 31:1-9 (protective arm responses, impact ~0.7-1 s
   after onset); Lo, Ashton-Miller & co. and Robinovitch et al. (2013), Lancet 381:47 (forward falls onto
-  hands and knees, sideways falls onto the hip); descent head speeds of ~2-4 m/s.
+  hands and knees, sideways falls onto the hip; backward falls squat onto the buttocks before the trunk
+  rolls back, Hsiao & Robinovitch 1998; Smeesters et al. (2001), J. Biomech. 34:589: slips mostly end
+  backward or sideways); descent head speeds of ~2-4.5 m/s.
 * Sit-to-stand / stand-to-sit: Schenkman et al. (1990), Phys. Ther. 70:638 (flexion-momentum, momentum
   transfer, extension and stabilisation phases, trunk flexion ~30-45 deg); Millington et al. (1992),
   Arch. Phys. Med. Rehabil. 73:609; durations ~1.5-3 s. Seat height 0.45 m for a 1.75 m adult.
@@ -278,7 +280,7 @@ _FALL_SIDE = dict(  # crouching while tipping sideways onto the hip, then lying 
 # Backward (Hsiao & Robinovitch 1998, J Biomech 31:1-9: in backward falls people squat, land on the pelvis,
 # reach back with the arms and tuck the chin; slips, which throw the feet forward, mostly end backward or
 # sideways, Smeesters et al. 2001, J Biomech 34:589-595): knees and hips flex while the trunk leans forward to
-# brake, impact on the buttocks (u ~ 0.6), then the trunk rolls back to supine with the legs out.
+# brake, impact on the buttocks (u ~ 0.7), then the trunk rolls back to supine with the legs out.
 _FALL_BACKWARD = dict(  # the hip below the knee at landing: the thigh pitched back past horizontal (< -90)
     roll=(0, 0, 0, 0, 0, 0), head_roll=(0, 0, 0, 0, 0, 0),
     shank=(0, 15, 45, -15, -50, -85), thigh=(0, -25, -70, -135, -110, -92), trunk=(0, 6, 25, 15, -40, -88),
