@@ -124,75 +124,31 @@ def process_paths(paths: dict[str, PathSet], radar: RadarConfig, keep_iq: bool =
     wf, dsp = radar.waveform, radar.dsp
     index = {link.name: i for i, link in enumerate(radar.links)}
     noise = None if radar.receiver is None else noise_power_per_sample(radar.receiver, wf.fs)
-    def link(item, progress) -> tuple[str, LinkResult, float, float]:
-        name, ps = item
-        seed = (int(noise_seed), index.get(name, 0))
-        t0 = time.perf_counter()
-        if not keep_iq and iq_transform is None:
-            chirp_t, proj = synthesise_projection(ps, wf, dsp, receiver=radar.receiver, seed=seed,
-                                                  method=synthesis, oversample=oversample, progress=progress)
-            t1 = time.perf_counter()
-            sig = signatures_from_projection(proj, dsp, noise)
-            iq = None
-        else:
-            chirp_t, iq = received_iq(ps, wf, radar.receiver, seed, method=synthesis,
-                                      oversample=oversample, progress=progress)
-            if iq_transform is not None:
-                iq = iq_transform(name, iq)
-            t1 = time.perf_counter()
-            sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0, noise_power=noise)
-        return name, LinkResult(signature=sig, chirp_times=chirp_t, iq=iq if keep_iq else None), t1 - t0, \
-            time.perf_counter() - t1
-
     # One BLAS thread: the synthesisers' and DSP's small matrix products (fast-time projections, N = 128)
     # gain nothing from threads, and OpenBLAS splits a product's sums by its thread count, so the same seed
     # would give other last bits on a machine with another core count (tests/test_dsp_determinism.py).
     with threadpool_limits(limits=1, user_api="blas"):
-        workers = _link_workers(len(paths), keep_iq or iq_transform is not None)
-        if workers > 1:
-            done = _links_in_threads(link, list(paths.items()), workers, progress)
-        else:
-            done = [link(item, progress) for item in paths.items()]
-    for name, result, t_synth, t_dsp in done:
-        timing["synthesis"] = timing.get("synthesis", 0.0) + t_synth
-        timing["dsp"] = timing.get("dsp", 0.0) + t_dsp
-        out[name] = result
+        for name, ps in paths.items():
+            seed = (int(noise_seed), index.get(name, 0))
+            t0 = time.perf_counter()
+            if not keep_iq and iq_transform is None:
+                chirp_t, proj = synthesise_projection(ps, wf, dsp, receiver=radar.receiver, seed=seed,
+                                                      method=synthesis, oversample=oversample, progress=progress)
+                t1 = time.perf_counter()
+                sig = signatures_from_projection(proj, dsp, noise)
+                iq = None
+            else:
+                chirp_t, iq = received_iq(ps, wf, radar.receiver, seed, method=synthesis,
+                                          oversample=oversample, progress=progress)
+                if iq_transform is not None:
+                    iq = iq_transform(name, iq)
+                t1 = time.perf_counter()
+                sig = signatures(iq, wf, dsp, t0=float(chirp_t[0]) if chirp_t.size else 0.0, noise_power=noise)
+            t2 = time.perf_counter()
+            timing["synthesis"] = timing.get("synthesis", 0.0) + t1 - t0
+            timing["dsp"] = timing.get("dsp", 0.0) + t2 - t1
+            out[name] = LinkResult(signature=sig, chirp_times=chirp_t, iq=iq if keep_iq else None)
     return out
-
-
-def _link_workers(n_links: int, raw_iq: bool) -> int:
-    """Links synthesised side by side: one per numba thread of this process (at most one per link), on the
-    projection route only (the raw-IQ route has its own chunk threads). Each link's kernels then run on
-    fewer threads: on 2 cores two links in two threads beat one link at a time on two (the spreading
-    kernel's per-interval setup and the DSP's numpy parts do not split across threads); a dataset worker
-    pinned to one numba thread keeps to its core."""
-    import numba
-
-    return 1 if raw_iq or n_links < 2 else min(n_links, numba.get_num_threads())
-
-
-def _links_in_threads(link, items: list, workers: int, progress) -> list:
-    """`link(item, progress)` for every item on `workers` threads, each with its share of this thread's numba
-    threads (numba's count is per thread); results in the items' order, every link's numbers as computed
-    alone (noise seeded per link, kernels independent of their thread count: tests/test_dsp_determinism.py)."""
-    import threading
-    from concurrent.futures import ThreadPoolExecutor
-
-    import numba
-
-    share = max(1, numba.get_num_threads() // workers)
-    lock = threading.Lock()
-
-    def report(n: int) -> None:  # the synthesisers call it from the link threads
-        with lock:
-            progress(n)
-
-    def run(item):
-        numba.set_num_threads(share)
-        return link(item, None if progress is None else report)
-
-    with ThreadPoolExecutor(workers, thread_name_prefix="rtchannel-link") as pool:
-        return list(pool.map(run, items))
 
 
 def _described(backend_options: dict) -> dict:

@@ -85,28 +85,3 @@ def test_whole_chain_same_bytes_with_one_and_two_blas_threads():
         assert run.returncode == 0, run.stderr[-2000:]
         digests.append(run.stdout.strip().splitlines()[-1])
     assert len(digests[0]) == 64 and digests[0] == digests[1]
-
-
-def test_links_synthesised_side_by_side_equal_links_one_at_a_time(monkeypatch):
-    # two links in two threads (each with its share of numba's threads) give every link the bytes it gets
-    # alone, with its own noise seed; progress counts every chirp of every link once
-    import numpy as np
-
-    from rtchannel import pipeline
-    from rtchannel.backends.points import point_paths
-    from rtchannel.motion.procedural import generate
-    from rtchannel.radar import Radar
-
-    radar = Radar.glasgow(height_m=1.0, distance_m=3.0)
-    radar = radar.model_copy(update={"links": [radar.links[0], radar.links[0].model_copy(update={"name": "b"})]})
-    paths = point_paths(generate("sit", duration=1.8, pad_before=0.2, pad_after=0.2), radar)
-    runs = {}
-    for workers in (2, 1):
-        monkeypatch.setattr(pipeline, "_link_workers", lambda n, raw, w=workers: w)
-        counted = []
-        runs[workers] = pipeline.process_paths(paths, radar, progress=counted.append)
-        assert sum(counted) == 2 * len(runs[workers]["b"].chirp_times)
-    for name in ("radar1", "b"):
-        a, b = runs[2][name].signature, runs[1][name].signature
-        assert np.array_equal(a.p_vt, b.p_vt) and np.array_equal(a.mean_velocity, b.mean_velocity)
-    assert not np.array_equal(runs[2]["radar1"].signature.p_vt, runs[2]["b"].signature.p_vt)  # own noise
