@@ -42,6 +42,9 @@ def test_bad_radar_config_is_one_line_exit_2(tmp_path, capsys, yaml_text, field)
     (["--height", "-1"], "height"),
     (["--direction", "19"], "direction"),
     (["--radar-config", "/nonexistent.yaml"], "not found"),
+    (["--activity", "sit", "--fall-direction", "backward"], "--fall-direction"),
+    (["--activity", "fall", "--fall-direction", "down"], "fall-direction"),
+    (["--motion-file", "/nonexistent.bvh", "--fall-direction", "left"], "procedural fall"),
 ])
 def test_bad_arguments_are_one_line_exit_2(tmp_path, capsys, args, needle):
     assert main(["simulate", "--out", str(tmp_path), "--quiet", *args]) == 2
@@ -64,6 +67,16 @@ def test_simulate_writes_signature_file_and_plots(tmp_path):
         assert g["iq"].shape[1] == 128 and np.isfinite(g["p_vt"][()]).all()
     for png in ("pvt.png", "mean_velocity.png", "range.png", "range_doppler.png"):
         assert (out / png).stat().st_size > 10_000
+
+
+def test_fall_direction_reaches_the_stored_motion(tmp_path):
+    import json
+
+    out = tmp_path / "fall"
+    assert main(["simulate", "--activity", "fall", "--fall-direction", "backward", "--out", str(out), "--quiet",
+                 "--no-plots"]) == 0
+    with h5py.File(out / "signature.h5") as f:
+        assert json.loads(f.attrs["config"])["motion"]["fall_direction"] == "backward"
 
 
 def test_console_script_entry_point(tmp_path):

@@ -89,6 +89,8 @@ def add_motion_args(p) -> None:
     p.add_argument("--trim", type=finite_float, nargs=2, metavar=("START", "END"),
                    help="--motion-file: keep only START..END seconds of the take (e.g. one sit-down of a "
                    "longer recording)")
+    p.add_argument("--fall-direction", choices=("forward", "left", "right", "backward"),
+                   help="procedural fall: the direction (default: from --seed, seed mod 3 = forward, left, right)")
     p.add_argument("--fps", type=finite_float, default=60.0, help="motion frame rate [Hz] (default 60)")
     p.add_argument("--seed", type=seed_int, default=0, help="random seed, 0..2^63-1 (default 0)")
 
@@ -223,6 +225,8 @@ def build_motion(args):
     from rtchannel.motion.compose import place_take
 
     if args.motion_file is not None:
+        if getattr(args, "fall_direction", None) is not None:
+            raise UserError("--fall-direction applies to a procedural fall, not to --motion-file")
         if not args.motion_file.is_file():
             raise UserError(f"motion file not found: {args.motion_file}")
         skeleton = getattr(args, "skeleton", None)
@@ -238,6 +242,11 @@ def build_motion(args):
         raise UserError("--trim applies to --motion-file; a procedural activity takes --duration")
     params = {k: v for k, v in (("speed", args.speed), ("duration", args.duration),
                                 ("distance", args.distance)) if v is not None}
+    direction = getattr(args, "fall_direction", None)
+    if direction is not None:
+        if args.activity != "fall":
+            raise UserError(f"--fall-direction applies to --activity fall, not {args.activity!r}")
+        params["fall_direction"] = direction
     if args.start is not None:
         params["start"] = tuple(args.start)
     if heading is not None:
