@@ -142,7 +142,8 @@ def _synthetic_dataset(root, n_per_class=6, t=80):
             p[np.argmin(np.abs(v - 0.8 * (k + 1))), on:on + 40] = 1.0
             p[32] += 0.05
             link = {"p_vt": p.astype(np.float32), "velocity": v.astype(np.float32),
-                    "time": time.astype(np.float32), "valid": np.ones(t, bool)}
+                    "time": time.astype(np.float32), "valid": np.ones(t, bool),
+                    "power": (1.0 + 9.0 * (np.arange(t) >= on)).astype(np.float32)}
             recs.append({"entry": {"item_id": f"{act}_{j:02d}", "activity": act, "label": k, "group": f"{act}_{j}"},
                          "links": {"radar1": link}})
     (root / "shards").mkdir(parents=True)
@@ -173,6 +174,25 @@ def test_cli_train_with_augment_records_settings_and_loads(tmp_path):
     # without --augment: off, as before
     assert main(["train", "--data", str(ds), "--out", str(tmp_path / "o.pt"), *args]) == 0
     assert TrainConfig(**load_checkpoint(tmp_path / "o.pt").meta["train_config"]).augment == AugmentConfig()
+
+
+def test_cli_train_intensity_power_and_augment_noise_off(tmp_path):
+    ds = _synthetic_dataset(tmp_path / "ds")
+    args = ["--links", "radar1", "--size", "16", "16", "--padding", "same", "--epochs", "1", "--no-group-split",
+            "--threads", "1", "--quiet", "--time-mode", "window", "--window-s", "1"]
+    model = tmp_path / "p.pt"
+    assert main(["train", "--data", str(ds), "--out", str(model), *args, "--intensity", "power",
+                 "--aug-noise-db", "off"]) == 0
+    clf = load_checkpoint(model)
+    assert clf.preprocess.intensity == "power"  # stored, so evaluation shows real images the same way
+    tc = TrainConfig(**clf.meta["train_config"])
+    assert tc.augment.on and tc.augment.noise_db is None
+    assert main(["train", "--data", str(ds), "--out", str(tmp_path / "n.pt"), *args,
+                 "--aug-noise-db", "-30", "-25"]) == 0
+    assert TrainConfig(**load_checkpoint(tmp_path / "n.pt").meta["train_config"]).augment.noise_db == (-30, -25)
+    for bad in (["-30"], ["loud", "x"], ["-10", "-30"]):  # one number, not numbers, lo > hi: one-line errors
+        assert main(["train", "--data", str(ds), "--out", str(tmp_path / "b.pt"), *args, "--aug-noise-db", *bad]) == 2
+    assert not (tmp_path / "b.pt").exists()
 
 
 def test_training_augments_training_batches_only_and_is_deterministic(monkeypatch):

@@ -22,7 +22,14 @@ one radar should accept another radar's recordings, so the input is built on *ph
    models) only time bins marked valid (carrying signal above the noise, `Signature.valid`) can be
    active: a noise-only column's p(v,t) is spread evenly over v, so its p-weighted |v| is about a
    quarter of the axis and would mark the whole recording active.
-3. Scale: `scale="db"` (default) takes 10 log10 p, clips it `floor_db` below the sample's maximum and
+3. Intensity: `intensity="p"` (default) shows the column-normalised p(v,t) of seed eq. 7, in which every
+   column sums to 1, so a column of pure noise is as bright overall as one holding the body: its noise,
+   spread evenly over V bins, sits about 10 log10(V) dB under a column's peak bin whatever the SNR.
+   `intensity="power"` shows the spectrogram of seed eq. 6, S(v,t) = p(v,t) power(t), on one scale per sample, as a
+   radar display (and the published Glasgow images) shows it: noise stays as far below the body as the
+   recording's SNR puts it, and a noise floor some dB higher changes the image by that much, not by filling
+   every quiet column. The time crop is found from p(v,t) in both cases (the same columns).
+4. Scale: `scale="db"` (default) takes 10 log10 p, clips it `floor_db` below the sample's maximum and
    maps [max - floor_db, max] to [0, 1] (per-sample normalisation: the received power level carries
    range and body size, not activity); `scale="linear"` divides by the sample's maximum.
 
@@ -66,6 +73,9 @@ class PreprocessConfig(BaseModel):
     window_s: float = Field(6.0, gt=0, le=3600, description="time span of time_mode='window' [s]")
     scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
     floor_db: float = Field(40.0, gt=0, le=300, description="dynamic range kept by scale='db' [dB] (float64 spans ~300 dB)")
+    # the seed's p(v,t) is the default so that checkpoints written before this field existed load unchanged
+    intensity: Literal["p", "power"] = Field("p", description="'p': the column-normalised p(v,t) (seed eq. 7); "
+                                             "'power': the power spectrogram p(v,t) power(t), one scale per sample")
 
 
 def _rebin(x: np.ndarray, src_edges: np.ndarray, dst_edges: np.ndarray, axis: int) -> np.ndarray:
@@ -106,20 +116,25 @@ def _motion(p_vt: np.ndarray) -> np.ndarray:
 
 
 def _active_span(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig,
-                 valid: np.ndarray | None = None) -> np.ndarray:
+                 valid: np.ndarray | None = None, shown: np.ndarray | None = None) -> np.ndarray:
+    """The active columns of `shown` (default p_vt; the same grid), found from p_vt."""
+    shown = p_vt if shown is None else shown
     dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
     motion = _motion(p_vt)
     if valid is not None and cfg.active_valid_only:
         motion = np.where(valid, motion, 0.0)
     if motion.max() <= 0:
-        return p_vt
+        return shown
     on = np.flatnonzero(motion >= cfg.active_fraction * motion.max())
     margin = int(round(cfg.active_margin_s / dt))
-    return p_vt[:, max(0, on[0] - margin):on[-1] + margin + 1]
+    return shown[:, max(0, on[0] - margin):on[-1] + margin + 1]
 
 
 def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfig,
-                 valid: np.ndarray | None = None, power: np.ndarray | None = None) -> np.ndarray:
+                 valid: np.ndarray | None = None, power: np.ndarray | None = None,
+                 shown: np.ndarray | None = None) -> np.ndarray:
+    """The window of `shown` (default p_vt; the same grid) centred as found from p_vt."""
+    shown = p_vt if shown is None else shown
     t = p_vt.shape[1]
     dt = float(np.median(np.diff(time))) if time is not None and len(time) > 1 else 0.016
     n_win = max(1, int(round(cfg.window_s / dt))) if dt > 0 else 0
@@ -140,10 +155,10 @@ def _time_window(p_vt: np.ndarray, time: np.ndarray | None, cfg: PreprocessConfi
         activity = activity * power
     centre = int(round(np.average(np.arange(t), weights=activity))) if activity.sum() > 0 else t // 2
     start = centre - n_win // 2
-    out = np.zeros((p_vt.shape[0], n_win), p_vt.dtype)
+    out = np.zeros((shown.shape[0], n_win), shown.dtype)
     lo, hi = max(0, start), min(t, start + n_win)
     if hi > lo:
-        out[:, lo - start:hi - start] = p_vt[:, lo:hi]
+        out[:, lo - start:hi - start] = shown[:, lo:hi]
     return out
 
 
@@ -160,7 +175,8 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
         valid: [T] bool, time bins carrying signal above the noise (`Signature.valid`); with
             `cfg.active_valid_only` only these can be active. None: every bin may be.
         power: [T] column power (`Signature.power`, any scale); with `cfg.window_power` it weights the
-            window's centroid. None: unweighted.
+            window's centroid; with `cfg.intensity='power'` it scales each column (required then). None:
+            unweighted.
     """
     p = np.nan_to_num(np.asarray(p_vt, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     if p.ndim != 2 or p.shape[1] == 0:
@@ -175,11 +191,17 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
         if power.size != p.shape[1]:
             raise InputError(f"power has {power.size} time bins, p_vt {p.shape[1]}")
         power = np.maximum(power, 0.0)
+    if cfg.intensity == "power" and power is None:
+        raise InputError("intensity 'power' needs the sample's column power (Signature.power)")
     p = _velocity_grid(p, velocity, cfg)
+    # the crop is found from p(v,t) whatever is shown: the same columns for both intensities
+    shown = p * power[None, :] if cfg.intensity == "power" else p
     if cfg.time_mode == "window":
-        p = _time_window(p, time, cfg, valid, power)
+        p = _time_window(p, time, cfg, valid, power, shown)
     elif cfg.time_mode == "active":
-        p = _active_span(p, time, cfg, valid)
+        p = _active_span(p, time, cfg, valid, shown)
+    else:
+        p = shown
     p = _resample_axis(p, cfg.n_time, axis=1)
     peak = p.max()
     if peak <= 0:

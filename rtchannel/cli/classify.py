@@ -34,6 +34,9 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--window-s", type=float, default=6.0, help="window length for --time-mode window [s]")
     g.add_argument("--scale", choices=("db", "linear"), default="db", help="intensity scale (default db)")
     g.add_argument("--floor-db", type=float, default=40.0, help="dynamic range kept in dB (default 40)")
+    g.add_argument("--intensity", choices=("p", "power"), default="p", help="p: the column-normalised p(v,t) "
+                   "(seed eq. 7, default); power: the spectrogram p(v,t) x column power (seed eq. 6), one scale per "
+                   "sample, so quiet columns stay dark")
     g = p.add_argument_group("network")
     g.add_argument("--kernel", type=int, default=3, choices=(3, 4), help="conv kernel size (seed: 3 or 4)")
     g.add_argument("--padding", choices=("valid", "same"), default="valid")
@@ -76,8 +79,8 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--aug-db-offset", type=float, metavar="DB", help="every pixel offset by up to +-DB [dB], "
                    "then clipped (default 2)")
     g.add_argument("--aug-p", type=float, metavar="P", help="probability of each transform per sample (default 0.5)")
-    g.add_argument("--aug-noise-db", type=float, nargs=2, metavar=("LO", "HI"), help="receiver-noise level range "
-                   "[dB re the peak pixel], exponential speckle per pixel (default -40 -20)")
+    g.add_argument("--aug-noise-db", nargs="+", metavar="DB", help="receiver-noise level range LO HI "
+                   "[dB re the peak pixel], exponential speckle per pixel (default -40 -20), or 'off'")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -86,12 +89,25 @@ _AUG_ARGS = {"aug_shift_s": "shift_s", "aug_width_s": "nominal_width_s", "aug_st
              "aug_noise_db": "noise_db"}
 
 
+def _noise_range(values: list[str]) -> tuple[float, float] | None:
+    """--aug-noise-db: 'off' -> None, two numbers -> (lo, hi) dB."""
+    if [v.lower() for v in values] == ["off"]:
+        return None
+    try:
+        lo, hi = (float(v) for v in values)
+    except ValueError:
+        raise _user_error()(f"--aug-noise-db takes two numbers (dB) or 'off', got {' '.join(values)}") from None
+    return lo, hi
+
+
 def _augment_config(args):
     from pydantic import ValidationError
 
     from processing.classifier.augment import AugmentConfig
 
     given = {f: getattr(args, a) for a, f in _AUG_ARGS.items() if getattr(args, a, None) is not None}
+    if "noise_db" in given:
+        given["noise_db"] = _noise_range(given["noise_db"])
     if not given and not getattr(args, "augment", False):
         return AugmentConfig()
     try:
@@ -109,7 +125,7 @@ def _configs(args):
     links = [s.strip() for s in args.links.split(",") if s.strip()]
     pre = PreprocessConfig(n_velocity=args.size[0], n_time=args.size[1], v_range_mps=args.v_range or None,
                            time_mode=args.time_mode, window_s=args.window_s, scale=args.scale,
-                           floor_db=args.floor_db)
+                           floor_db=args.floor_db, intensity=args.intensity)
     model = ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links), input_size=tuple(args.size),
                         kernel_size=args.kernel, padding=args.padding, fusion=args.fusion,
                         shared_weights=args.shared_weights, batch_norm=not args.no_batch_norm,
