@@ -269,3 +269,30 @@ def test_images_in_sub_folders_are_traced_to_their_files_and_self_contradicting_
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["by_folder"]["campB"]["n"] == 2
     assert [u["file"] for u in metrics["unreadable"]] == ["campB/3P03A02R01.png"]
+
+
+def test_spectrogram_models_read_real_images_with_their_column_power(model_path, tmp_path):
+    """A model with `intensity='power'` gets each image's column power from the reader: its input is the
+    spectrogram's preprocessing, and a column whose power is 20 dB lower than another's shows 20 dB lower."""
+    import dataclasses
+
+    from processing.realdata.spectrogram_image import glasgow_layout
+    from processing.realdata.spectrogram_image_writer import write_spectrogram_image
+
+    clf = load_checkpoint(model_path)
+    spec = dataclasses.replace(clf, preprocess=clf.preprocess.model_copy(update={"intensity": "power"}))
+    v, t = np.linspace(-6, 6, 317), np.linspace(0, 5.0, 120)
+    level = np.where(t < 2.5, 1.0, 0.01)  # the second half of the clip 20 dB weaker
+    power = np.exp(-0.5 * ((v[:, None] - 1.0) / 0.3) ** 2) * level + 1e-6
+    write_spectrogram_image(tmp_path / "1P01A01R01.png", v, t, glasgow_layout(5.0), power=power)
+    images, bad = load_real_images(tmp_path)
+    assert not bad and len(images) == 1
+    s = images[0].signature
+    x_p, x_s = image_inputs(clf, images)[0, 0], image_inputs(spec, images)[0, 0]
+    np.testing.assert_array_equal(x_s, preprocess(s.p_vt, s.velocity, s.time, spec.preprocess, s.valid, s.power))
+    half = x_s.shape[1] // 2
+    # the line's brightest input cell in each half: equal in p(v,t); 20 dB (0.5 of the 40 dB display) apart in
+    # the spectrogram, to within the image's colour steps (40 dB over 256 colours: 0.16 dB) and the edge columns
+    assert x_p[:, 2:half - 2].max() == pytest.approx(x_p[:, half + 2:-2].max(), abs=0.02)
+    assert x_s[:, 2:half - 2].max() - x_s[:, half + 2:-2].max() == pytest.approx(0.5, abs=0.02)
+    assert evaluate_images(spec, images).report.n == 1
