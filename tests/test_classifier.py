@@ -226,6 +226,14 @@ def test_evaluate_recordings_from_dat(trained, tmp_path):
     # (atol 1e-4: predictions.csv rounds confidences to 4 decimals)
     np.testing.assert_allclose(got, expected.max(axis=1), atol=1e-4)
     np.testing.assert_allclose([float(r[3]) for r in pairs], expected.max(axis=1), atol=1e-4)
+    # a spectrogram model (intensity 'power') gets the recordings' column power and valid mask as well
+    spec = Classifier(model=res.model, preprocess=pre.model_copy(update={"intensity": "power"}),
+                      classes=list(ACTIVITIES), links=["radar1", "radar2"])
+    expected = spec.predict_proba(spec.inputs(samples))
+    assert main(["evaluate", "--model", str(save_checkpoint(tmp_path / "s.pt", spec)), "--recordings",
+                 str(rec_dir / "two"), "--channels", "2", "--out", str(out), "--quiet"]) == 0
+    rows = [r.split(",") for r in (out / "predictions.csv").read_text().splitlines()[1:]]
+    np.testing.assert_allclose([float(r[3]) for r in rows], expected.max(axis=1), atol=1e-4)
 
 
 def test_active_time_mode_crops_idle_standing():

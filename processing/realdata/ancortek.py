@@ -254,7 +254,8 @@ def label_from_name(name: str, classes) -> str | None:
 
 def recording_samples(paths, links, dsp=None, n_channels: int = 1, conjugate: bool = False,
                       allow_partial: bool = False) -> list[tuple[str, dict]]:
-    """Signatures of recordings, one sample per activity: [(name, {link: {"p_vt", "velocity", "time"}})].
+    """Signatures of recordings, one sample per activity: [(name, {link: {"p_vt", "velocity", "time", "valid",
+    "power"}})].
 
     One file per sample when it holds one interleaved channel per link (`n_channels == len(links)`, channel
     i -> links[i]); otherwise one single-channel file per link, paired by name: ``walk01_radar1.dat`` and
@@ -271,7 +272,8 @@ def recording_samples(paths, links, dsp=None, n_channels: int = 1, conjugate: bo
 
     def sig_dict(iq, wf):
         s = signatures(iq, wf, dsp)
-        return {"p_vt": s.p_vt, "velocity": s.velocity, "time": s.time}
+        # valid and power as a simulated sample carries them: the classifier's preprocessing uses both
+        return {"p_vt": s.p_vt, "velocity": s.velocity, "time": s.time, "valid": s.valid, "power": s.power}
 
     paths = sorted(Path(p) for p in paths)
     out: list[tuple[str, dict]] = []
