@@ -51,10 +51,10 @@ def test_power_intensity_puts_each_column_at_its_power():
     assert shown[40, :32] == pytest.approx(1.0) and shown[40, 32:] == pytest.approx(0.5)
     np.testing.assert_array_equal(preprocess(p, None, None, cfg, power=power)[40], 1.0)
     sig = _signature()
-    same = _input(sig, POWER)
+    spectrogram = _input(sig, POWER)
     np.testing.assert_array_equal(preprocess(sig.p_vt, V, T, POWER, sig.valid, np.full(T.size, 3.0)),
                                   _input(sig, WINDOW))
-    assert same.shape == (64, 64) and np.isfinite(same).all()
+    assert spectrogram.shape == (64, 64) and np.isfinite(spectrogram).all()
 
 
 def test_the_crop_is_the_same_for_both_intensities():

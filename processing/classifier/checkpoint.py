@@ -5,11 +5,11 @@ runs while loading): format version, model config, preprocessing config, class n
 (branch order), state dict, training history and metadata. Version 2 is a seed ensemble
 (`processing.classifier.ensemble`): an empty state dict and a list "members" of state dicts of the same
 network; version 1 files are still read, and version-1 readers refuse version 2 instead of using one member.
-Loading checks, in this order, so that a damaged or hostile file gives one line naming the file and the
-field and never allocates more than the limits of `ModelConfig`: file size, the blob's keys and types, both configurations (pydantic bounds,
-including the parameter and activation limits), classes/links against the configuration, the preprocessing
-size against the network input, the members' total parameters, then every state-dict key, shape, dtype and
-value (finite) against a freshly built network.
+Loading checks, in this order, so that a damaged or hostile file gives one line naming the file and the field
+and never allocates more than the limits of `ModelConfig`: file size, the blob's keys and types, both
+configurations (pydantic bounds, including the parameter and activation limits), classes/links against the
+configuration, the preprocessing size against the network input, the members' total parameters, then every
+state-dict key, shape, dtype and value (finite) against a freshly built network.
 """
 from __future__ import annotations
 
