@@ -195,6 +195,25 @@ def test_cli_train_intensity_power_and_augment_noise_off(tmp_path):
     assert not (tmp_path / "b.pt").exists()
 
 
+def test_cli_augment_scale_keeps_only_the_stretch_and_velocity_scale(tmp_path):
+    ds = _synthetic_dataset(tmp_path / "ds")
+    args = ["--links", "radar1", "--size", "16", "16", "--padding", "same", "--epochs", "1", "--no-group-split",
+            "--threads", "1", "--quiet", "--time-mode", "window", "--window-s", "1", "--intensity", "power"]
+    assert main(["train", "--data", str(ds), "--out", str(tmp_path / "s.pt"), *args, "--augment", "scale"]) == 0
+    aug = TrainConfig(**load_checkpoint(tmp_path / "s.pt").meta["train_config"]).augment
+    assert aug == AugmentConfig(on=True, shift_s=0.0, db_floor=0.0, db_offset=0.0, noise_db=None)
+    assert aug.enabled and aug.stretch == AugmentConfig().stretch and aug.vscale == AugmentConfig().vscale
+    # an --aug-* option overrides the set's value; a bare --augment is still every transform
+    assert main(["train", "--data", str(ds), "--out", str(tmp_path / "t.pt"), *args, "--augment", "scale",
+                 "--aug-vscale", "0.9", "1.1"]) == 0
+    aug = TrainConfig(**load_checkpoint(tmp_path / "t.pt").meta["train_config"]).augment
+    assert aug.vscale == (0.9, 1.1) and aug.shift_s == 0 and aug.noise_db is None
+    assert main(["train", "--data", str(ds), "--out", str(tmp_path / "a.pt"), *args, "--augment"]) == 0
+    assert TrainConfig(**load_checkpoint(tmp_path / "a.pt").meta["train_config"]).augment == AugmentConfig(on=True)
+    assert main(["train", "--data", str(ds), "--out", str(tmp_path / "b.pt"), *args, "--augment", "geometry"]) == 2
+    assert not (tmp_path / "b.pt").exists()
+
+
 def test_training_augments_training_batches_only_and_is_deterministic(monkeypatch):
     import importlib
 

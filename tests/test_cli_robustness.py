@@ -7,7 +7,7 @@ import pytest
 from test_real_eval import _glasgow_like, model_path  # noqa: F401 - the module-scoped model fixture
 
 from processing.classifier import load_checkpoint
-from processing.classifier.perturb import QUICK_GRID, robustness_grid
+from processing.classifier.perturb import QUICK_GRID, Perturbation, robustness_grid
 from processing.realdata.real_images import load_real_images
 from rtchannel.cli import main
 
@@ -65,3 +65,31 @@ def test_user_errors_are_one_line_exit_2(model_path, tmp_path, capsys):  # noqa:
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(e.startswith("error: ") for e in err)
     assert main(["robustness", "--help"]) == 0
+
+
+def test_images_whose_motion_a_shift_removes_count_as_truncated(model_path, tmp_path):  # noqa: F811
+    """A fall (receding line) only in the clip's first second, over a noise floor, leaves the clip under a
+    -1.5 s shift: truncated, and the accuracy on intact images is the whole-clip walk's alone."""
+    from processing.realdata.spectrogram_image import glasgow_layout
+    from processing.realdata.spectrogram_image_writer import write_spectrogram_image
+
+    root = tmp_path / "imgs"
+    _glasgow_like(root / "1P01A01R01.png", 1.5)  # walk over the whole clip: no column is quieter than another
+    v, t = np.linspace(-6, 6, 317), np.linspace(0, 5.0, 120)
+    line = np.exp(-0.5 * ((v[:, None] + 1.5) / 0.3) ** 2) * (t < 1.0)
+    write_spectrogram_image(root / "6P02A06R01.png", v, t, glasgow_layout(5.0), power=line + 1e-4)
+    ims, bad = load_real_images(root)
+    assert not bad
+    clf = load_checkpoint(model_path)
+    grid = (Perturbation.make("none"), Perturbation.make("shift", -1.5), Perturbation.make("shift", 1.5))
+    none, early, late = robustness_grid(clf, ims, grid)
+    assert none["truncated"] == 0 and none["accuracy_intact"] == none["accuracy"] == 1.0
+    assert early["truncated"] == 0.5 and early["accuracy_intact"] == 1.0  # the walk, still recognised
+    assert late["truncated"] == 0 and late["accuracy_intact"] == late["accuracy"]
+    only = robustness_grid(clf, [im for im in ims if im.activity == "fall"], grid[:2])
+    assert only[1]["truncated"] == 1.0 and only[1]["accuracy_intact"] is None
+    out = tmp_path / "rob"
+    assert main(["robustness", "--model", str(model_path), "--images", str(root), "--out", str(out), "--quiet"]) == 0
+    rows = {r["perturbation"]: r for r in _rows(out / "robustness.csv")}
+    assert float(rows["shift -1.5 s"]["truncated"]) == 0.5 and float(rows["none"]["truncated"]) == 0
+    assert "| truncated % | accuracy on intact % |" in (out / "robustness.md").read_text()

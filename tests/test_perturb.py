@@ -13,6 +13,7 @@ from processing.classifier.perturb import (
     Perturbation,
     apply,
     change_floor,
+    motion_kept,
     quiet_columns,
     scale_velocity,
     shift_time,
@@ -162,3 +163,47 @@ def test_bad_values_are_input_errors(sig):
             f(sig, v)
     with pytest.raises(InputError):
         Perturbation.make("rotate", 1.0)
+
+
+def _centre() -> np.ndarray:
+    """The fixture line's centre velocity [m/s] per active column (as `_signature` draws it)."""
+    k = np.arange(ACTIVE.stop - ACTIVE.start)
+    return 2.0 * np.sin(np.pi * k / k[-1]) + 0.3
+
+
+def _moving_mass(lo: float, hi: float) -> np.ndarray:
+    """Per active column, the line's mass (unit Gaussian of 0.25 m/s) at lo <= |v| < hi, from the normal CDF."""
+    from scipy.stats import norm
+
+    c = _centre()
+    band = lambda a, b: norm.cdf((b - c) / 0.25) - norm.cdf((a - c) / 0.25)  # noqa: E731
+    return band(lo, hi) + band(-hi, -lo)
+
+
+def test_motion_kept_is_one_where_nothing_leaves_the_image(sig):
+    for p in (Perturbation.make("none"), Perturbation.make("floor", 10.0), Perturbation.make("floor", -5.0),
+              Perturbation.make("shift", 1.0), Perturbation.make("shift", -1.5),  # active span 1.56-3.39 s
+              Perturbation.make("stretch", 1.33), Perturbation.make("stretch", 0.75),
+              Perturbation.make("velocity", 1.25)):  # peak 2.3 m/s -> 2.9 + 4 sigma, inside +-6 m/s
+        assert motion_kept(sig, p) == pytest.approx(1.0, abs=1e-3), p.name
+
+
+def test_motion_kept_by_a_shift_that_cuts_the_active_span(sig):
+    dt = T[1] - T[0]
+    # the line is symmetric about the middle of its span: cutting its first half keeps half its motion power
+    half = Perturbation.make("shift", -(ACTIVE.start + 70) * dt)
+    assert motion_kept(sig, half) == pytest.approx(0.5, abs=0.005)
+    gone = Perturbation.make("shift", -ACTIVE.stop * dt)
+    assert motion_kept(sig, gone) < 1e-3  # what is left is the noise floor's positive residue
+
+
+def test_motion_kept_by_a_large_stretch_and_velocity_scale(sig):
+    moving = _moving_mass(0.5, np.inf)
+    # x20 about the clip centre c = 191 keeps the columns within 191 +- 191/20 (182..200)
+    j = np.arange(ACTIVE.start, ACTIVE.stop)
+    inside = np.abs(j - 191) * 20 <= 191
+    assert motion_kept(sig, Perturbation.make("stretch", 20.0)) == pytest.approx(
+        moving[inside].sum() / moving.sum(), abs=0.01)
+    # x3 keeps the bins that land within the +-6 m/s axis, |v| <= 2 m/s
+    assert motion_kept(sig, Perturbation.make("velocity", 3.0)) == pytest.approx(
+        _moving_mass(0.5, 2.0).sum() / moving.sum(), abs=0.02)

@@ -107,6 +107,17 @@ class AugmentConfig(BaseModel):
         return self.shift_s / span * preprocess_cfg.n_time
 
 
+# Named sets of transforms (`rtchannel train --augment NAME`): fields that differ from AugmentConfig's defaults.
+# "scale" keeps only the velocity scale and the time stretch. With the spectrogram input (--intensity power) the
+# others cost accuracy on real images (docs/results.md, "Scale-only augmentation"): a shift cuts activities
+# (a pick whose stoop left the clip is a stand-up) and the noise and dB transforms answer a floor problem that
+# the spectrogram does not have.
+PRESETS: dict[str, dict] = {
+    "all": {},
+    "scale": {"shift_s": 0.0, "db_floor": 0.0, "db_offset": 0.0, "noise_db": None},
+}
+
+
 def noise_floor_columns(x: torch.Tensor) -> torch.Tensor:
     """Each channel's quietest column (lowest mean over velocity) [B, C, V, 1] of x [B, C, V, T]."""
     idx = x.mean(dim=2).argmin(dim=-1)  # [B, C]

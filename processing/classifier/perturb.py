@@ -206,12 +206,59 @@ def apply(sig: Signature, perturbation: Perturbation) -> Signature:
     return _APPLY[perturbation.kind](sig, perturbation.value)
 
 
+MOTION_V = 0.5  # m/s: a person standing still (postural sway, breathing) stays well under it; limbs in motion exceed it
+INTACT = 0.5  # an image counts as intact under a perturbation when it keeps at least half of its motion power
+
+
+def _kept_cells(sig: Signature, perturbation: Perturbation) -> np.ndarray:
+    """Boolean [V, T]: cells of `sig` whose content `perturbation` keeps inside the image's axes (a shift or
+    stretch moves columns past the clip's ends, a velocity scale above 1 moves bins past the axis)."""
+    shape = np.asarray(sig.p_vt).shape
+    kind, value = perturbation.kind, perturbation.value
+    if kind == "shift":
+        dest = np.arange(shape[1]) + round(value / _dt(sig))
+        return np.broadcast_to((dest >= 0) & (dest <= shape[1] - 1), shape)
+    if kind == "stretch":
+        c = (shape[1] - 1) / 2
+        dest = c + (np.arange(shape[1]) - c) * _check_factor(value, "stretch")
+        return np.broadcast_to((dest >= -1e-9) & (dest <= shape[1] - 1 + 1e-9), shape)
+    if kind == "velocity":
+        from processing.realdata.spectrogram_image import cell_edges
+
+        v = np.asarray(sig.velocity, dtype=np.float64)
+        edges = cell_edges(v, "velocity")
+        f = _check_factor(value, "velocity scale")
+        inside = (f * edges[:-1] >= edges[0] - 1e-12) & (f * edges[1:] <= edges[-1] + 1e-12)
+        return np.broadcast_to(inside[:, None], shape)
+    return np.ones(shape, dtype=bool)
+
+
+def motion_kept(sig: Signature, perturbation: Perturbation) -> float:
+    """Share (0..1) of the image's motion power that `perturbation` keeps inside the image.
+
+    Motion power: S(v,t) minus the noise floor (the quiet columns' mean per velocity bin, `quiet_columns`),
+    clipped at 0, over |v| >= `MOTION_V`. A time shift of -1.5 s keeps none of a fall that is over within the
+    clip's first 1.5 s: no classifier can recognise what is no longer in the image, so the robustness table
+    reports accuracy on the images that keep at least `INTACT` of it apart from the total. An image without
+    motion power above its floor keeps all of it (1.0)."""
+    s = _power_image(sig)
+    floor = s[:, quiet_columns(sig)].mean(axis=1, keepdims=True)
+    moving = np.abs(np.asarray(sig.velocity, dtype=np.float64)) >= MOTION_V
+    m = np.maximum(s - floor, 0.0) * moving[:, None]
+    total = float(m.sum())
+    if not (total > 0 and np.isfinite(total)):
+        return 1.0
+    return float(m[_kept_cells(sig, perturbation)].sum() / total)
+
+
 def robustness_grid(clf, images, grid=DEFAULT_GRID, progress: bool = False) -> list[dict]:
     """Accuracy of `clf` on the known-class `images` (RealImage) under each perturbation of `grid`.
 
     Returns one row per perturbation: perturbation (name), kind, value, n, accuracy, macro_f1 (fractions),
-    delta_accuracy (against the 'none' row, if the grid has one; else None) and recall_<class> for every
-    model class that has images (classes without images are left out: their recall says nothing).
+    delta_accuracy (against the 'none' row, if the grid has one; else None), truncated (share of the images
+    keeping less than `INTACT` of their motion power, `motion_kept`), accuracy_intact (accuracy over the
+    others; None if there are none) and recall_<class> for every model class that has images (classes
+    without images are left out: their recall says nothing).
     Images of classes the model does not know are not used. Raises RealImageError if none is known.
     """
     from processing.classifier.images import evaluate_images
@@ -223,9 +270,13 @@ def robustness_grid(clf, images, grid=DEFAULT_GRID, progress: bool = False) -> l
     rows = []
     for k, pert in enumerate(grid):
         moved = [dataclasses.replace(im, signature=apply(im.signature, pert)) for im in known]
-        rep = evaluate_images(clf, moved).report
+        ev = evaluate_images(clf, moved)
+        rep = ev.report
+        intact = np.array([motion_kept(im.signature, pert) >= INTACT for im in known])
+        right = np.array([clf.classes[int(p.argmax())] == im.activity for im, p in zip(ev.known, ev.known_proba)])
         row = {"perturbation": pert.name, "kind": pert.kind, "value": pert.value, "n": rep.n,
-               "accuracy": rep.accuracy, "macro_f1": rep.macro_f1}
+               "accuracy": rep.accuracy, "macro_f1": rep.macro_f1, "truncated": float(1 - intact.mean()),
+               "accuracy_intact": float(right[intact].mean()) if intact.any() else None}
         row.update({f"recall_{c}": float(rep.recall[clf.classes.index(c)]) for c in present})
         rows.append(row)
         if progress:
@@ -236,5 +287,5 @@ def robustness_grid(clf, images, grid=DEFAULT_GRID, progress: bool = False) -> l
     return rows
 
 
-__all__ = ["DEFAULT_GRID", "NEUTRAL", "QUICK_GRID", "Perturbation", "apply", "change_floor", "quiet_columns",
-           "robustness_grid", "scale_velocity", "shift_time", "stretch_time"]
+__all__ = ["DEFAULT_GRID", "INTACT", "MOTION_V", "NEUTRAL", "QUICK_GRID", "Perturbation", "apply", "change_floor",
+           "motion_kept", "quiet_columns", "robustness_grid", "scale_velocity", "shift_time", "stretch_time"]

@@ -62,10 +62,11 @@ def _add_preprocess_model_args(p) -> None:
                    "Default 1: weights are reproducible only at a fixed thread count (1 and 2 differ)")
     g.add_argument("--no-batch-norm", action="store_true", help="the literal seed FEN without BatchNorm")
     g = p.add_argument_group("augmentation of training batches (recorded in the model's train_config)")
-    g.add_argument("--augment", action="store_true",
-                   help="random time shift (+-1 s), time stretch (x0.75-1.33), velocity scale (x0.8-1.25), dB "
-                   "jitter (floor +-5 dB, offset +-2 dB) and receiver noise (-40..-20 dB re the peak), each applied "
-                   "with probability 0.5; any --aug-* option implies it")
+    g.add_argument("--augment", nargs="?", const="all", choices=("all", "scale"),
+                   help="all (the default when given without a value): random time shift (+-1 s), time stretch "
+                   "(x0.75-1.33), velocity scale (x0.8-1.25), dB jitter (floor +-5 dB, offset +-2 dB) and receiver "
+                   "noise (-40..-20 dB re the peak), each applied with probability 0.5; scale: the time stretch and "
+                   "velocity scale only. Any --aug-* option implies it and overrides the set's value")
     g.add_argument("--aug-shift-s", type=float, metavar="S", help="maximum time shift either way [s] (default 1; "
                    "time modes resample/active: an image taken as 6 s wide, see --aug-width-s; 0: no shift)")
     g.add_argument("--aug-width-s", type=float, metavar="S", help="seconds an image of time mode resample/active "
@@ -103,15 +104,17 @@ def _noise_range(values: list[str]) -> tuple[float, float] | None:
 def _augment_config(args):
     from pydantic import ValidationError
 
-    from processing.classifier.augment import AugmentConfig
+    from processing.classifier.augment import PRESETS, AugmentConfig
 
     given = {f: getattr(args, a) for a, f in _AUG_ARGS.items() if getattr(args, a, None) is not None}
     if "noise_db" in given:
         given["noise_db"] = _noise_range(given["noise_db"])
-    if not given and not getattr(args, "augment", False):
+    preset = getattr(args, "augment", None)
+    if not given and not preset:
         return AugmentConfig()
+    fields = {**PRESETS[preset or "all"], **{f: tuple(v) if isinstance(v, list) else v for f, v in given.items()}}
     try:
-        return AugmentConfig(on=True, **{f: tuple(v) if isinstance(v, list) else v for f, v in given.items()})
+        return AugmentConfig(on=True, **fields)
     except ValidationError as e:
         err = e.errors()[0]
         name = next((a for a, f in _AUG_ARGS.items() if f in err.get("loc", ())), "augment")

@@ -24,14 +24,22 @@ def _csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
+_LEGEND = ("truncated: images that keep less than half of their motion power (|v| >= {v} m/s, above the "
+           "image's noise floor) inside the image under the perturbation: what left the clip cannot be "
+           "recognised. accuracy on intact: the accuracy on the other images.\n")
+
+
 def _markdown(rows: list[dict]) -> str:
-    """Table in %: perturbation, n, accuracy, change against 'none', macro F1, recall per class."""
+    """Table in %: perturbation, n, accuracy, change against 'none', share of images the perturbation
+    truncates and the accuracy on the others, macro F1, recall per class."""
     classes = [k[len("recall_"):] for k in rows[0] if k.startswith("recall_")]
-    head = ["perturbation", "n", "accuracy %", "change (points)", "macro F1 %", *(f"{c} recall %" for c in classes)]
+    head = ["perturbation", "n", "accuracy %", "change (points)", "truncated %", "accuracy on intact %",
+            "macro F1 %", *(f"{c} recall %" for c in classes)]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        d = r["delta_accuracy"]
+        d, ai = r["delta_accuracy"], r["accuracy_intact"]
         cells = [r["perturbation"], str(r["n"]), f"{100 * r['accuracy']:.1f}", "" if d is None else f"{100 * d:+.1f}",
+                 f"{100 * r['truncated']:.1f}", "" if ai is None else f"{100 * ai:.1f}",
                  f"{100 * r['macro_f1']:.1f}", *(f"{100 * r[f'recall_{c}']:.1f}" for c in classes)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
@@ -39,7 +47,7 @@ def _markdown(rows: list[dict]) -> str:
 
 def cmd_robustness(args) -> int:
     from processing.atomic import write_text_atomic
-    from processing.classifier.perturb import DEFAULT_GRID, QUICK_GRID, robustness_grid
+    from processing.classifier.perturb import DEFAULT_GRID, MOTION_V, QUICK_GRID, robustness_grid
     from processing.plots.robustness import plot_robustness
     from rtchannel.cli.classify import _load_model, load_images
 
@@ -52,7 +60,7 @@ def cmd_robustness(args) -> int:
     rows = robustness_grid(clf, images, grid, progress=not args.quiet)
     md = _markdown(rows)
     files = [write_text_atomic(out / "robustness.csv", _csv(rows)),
-             write_text_atomic(out / "robustness.md", f"# Robustness: {title}\n\n{md}"),
+             write_text_atomic(out / "robustness.md", f"# Robustness: {title}\n\n{md}\n{_LEGEND.format(v=MOTION_V)}"),
              plot_robustness(rows, out / "robustness.png", title=title)]
     print(f"{title} ({len(grid)} perturbations, {time.perf_counter() - t0:.1f} s):\n{md}", end="")
     print("wrote " + ", ".join(str(f) for f in files))
@@ -65,7 +73,9 @@ def add_robustness(sub) -> None:
                        "perturbations", description="Perturb every real image whose activity the model knows "
                        "(time shift, pace stretch about the clip centre, velocity scale, noise-floor change; "
                        "entering columns are the image's own noise floor) and evaluate MODEL on each perturbed "
-                       "set. Writes robustness.csv, robustness.md (table) and robustness.png (heat map).")
+                       "set. Images that keep less than half of their motion power inside the clip (a fall "
+                       "shifted out of it) are counted as truncated, and the accuracy on the others is reported "
+                       "apart. Writes robustness.csv, robustness.md (table) and robustness.png (heat map).")
     p.add_argument("--model", required=True, type=Path, help="single-radar checkpoint written by `rtchannel train`")
     p.add_argument("--images", required=True, type=Path, help="a folder of real spectrogram images in the Glasgow "
                    "layout (labels from names like 1P36A01R01.png or --labels)")
