@@ -5,8 +5,8 @@ with the unperturbed accuracy (the 'none' row) in the middle column where that k
 0 s, stretch x1, velocity x1, floor 0 dB), so reading along a row shows accuracy falling off either side of
 the baseline. Cells: accuracy in %, annotated with the value and the accuracy, and where the perturbation
 truncated images (moved most of their motion out of the image, `perturb.motion_kept`) the accuracy on the
-intact ones and the truncated share. Bottom panel (when the rows
-carry per-class recall): one row per class, one column per perturbation in grid order, cells recall in %.
+intact ones and the truncated share. Bottom panel (when the rows carry per-class recall): one row per
+class, one column per perturbation in grid order, cells recall in %.
 """
 from __future__ import annotations
 
@@ -32,7 +32,8 @@ def _label(kind: str, value: float) -> str:
 
 
 def _kind_grid(rows: list[dict]) -> tuple[list[str], np.ndarray, list[list[str]], list[list[str]]]:
-    """(kinds, accuracy % [K, C] with NaN for empty cells, cell labels [K][C]); the neutral column holds 'none'."""
+    """(kinds, accuracy % [K, C] with NaN for empty cells, cell labels [K][C], cell notes [K][C] (`_note`));
+    the neutral column holds 'none'."""
     base = next((r["accuracy"] for r in rows if r["kind"] == "none"), None)
     kinds = [k for k in KIND_ORDER if any(r["kind"] == k for r in rows)]
     kinds += sorted({r["kind"] for r in rows} - set(kinds) - {"none"})
