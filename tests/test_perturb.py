@@ -155,6 +155,8 @@ def test_grids_and_no_nan_anywhere(sig):
     for p in DEFAULT_GRID:
         _finite(apply(sig, p))
         _finite(apply(empty, p))
+        assert motion_kept(empty, p) == 1.0  # nothing above the floor: nothing to lose, never NaN
+        assert 0.0 <= motion_kept(sig, p) <= 1.0
 
 
 def test_bad_values_are_input_errors(sig):
