@@ -117,7 +117,7 @@ def test_prepared_frames_fill_gaps_like_the_exact_route():
 
 
 def test_sincos_matches_libm():
-    from processing.synthesis.grid import _sincos
+    from processing.numba_math import sincos as _sincos
     import numba
 
     @numba.njit
