@@ -150,8 +150,9 @@ def test_facet_paths_through_embree_equal_the_mitsuba_route(monkeypatch):
 
 
 def test_meshes_traced_side_by_side_equal_the_serial_route(monkeypatch):
-    """The direct-path mesh, the wall-image mesh and the clutter run in threads: the path sets are bit for bit
-    those of one thread (each keeps its own caster), and the stage times of all are reported."""
+    """The direct-path mesh, the wall-image mesh and the clutter run in threads, then the two links are
+    assembled in two: the path sets are bit for bit those of one thread (each keeps its own caster), and the
+    stage times of all are reported."""
     from rtchannel.backends import facets
 
     m = _walk(7)
