@@ -22,7 +22,8 @@ grid this replaces.
 Cost. Each path keeps a reference cell f for a few chirps (re-chosen on a fixed chirp schedule before its delay
 can have drifted by `drift` cells) and its weights on cells f - w/2 .. f + w/2 + 1 are polynomials of degree 5
 in its offset, so a path only adds c_p y_p^d (d = 0..5) to the moments of its reference cell; paths are
-counting-sorted by cell once per frame interval, the ~7,000 facets of a body share a few tens of cells, and a
+counting-sorted once per frame interval by the cell their reference follows (delay plus range-Doppler shift),
+the ~7,000 facets of a body share a few tens of cells (runs of ~35 paths on the bench walk), and a
 cell's moments go through the w + 2 weight polynomials once per chirp. Per path and chirp that is ~35 flops
 (phasor, delay, six complex moments), in loops over structure-of-arrays state that vectorise.
 
