@@ -233,6 +233,7 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
             for k, v in c.timing.items():
                 timing[k] = timing.get(k, 0.0) + v
         clock.t = time.perf_counter()
+
     def assemble_link(li):
         link = links[li]
         return assemble([(p[0][li],) + p[1:] for p in parts], link.name, sources[pairs[li][0]], sources[pairs[li][1]],
