@@ -23,6 +23,7 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 import torch
@@ -52,6 +53,18 @@ class TrainConfig(BaseModel):
     min_delta: float = Field(1e-4, ge=0, le=10.0, description="improvement that resets the patience counter")
     val_fraction: float = Field(0.2, gt=0, lt=1, description="validation share (seed: 80:20)")
     group_split: bool = Field(True, description="keep all copies of one motion source on one side")
+    val_split: Literal["groups", "deployment"] = Field(
+        "groups", description="groups: validate on held-out motion sources (val_fraction of them); deployment: "
+        "also on held-out tails of deployment factors, none of which reach training (`holdout`)")
+    holdout_factors: int = Field(2, ge=0, le=10, description="val_split deployment: factors with a held-out tail")
+    holdout_tail: float = Field(0.125, gt=0, lt=0.5, description="val_split deployment: share of items in each "
+                                "held-out tail")
+    average: Literal["none", "window"] = Field(
+        "none", description="window: the returned weights are the mean of the epochs around the best one whose "
+        "validation loss stays within average_tolerance of the best (weight averaging in the flat region of the "
+        "loss, as SWAD, Cha et al., NeurIPS 2021), with BatchNorm statistics re-estimated on the training data")
+    average_tolerance: float = Field(0.2, gt=0, le=10.0, description="average window: relative excess of the "
+                                     "validation loss over its minimum that an averaged epoch may have")
     seed: int = Field(0, ge=0, le=2**32 - 1, description="random seed (scikit-learn's split takes 32 bits)")
     threads: int | None = Field(None, ge=1, le=256, description="torch CPU threads; None: DEFAULT_THREADS (1)")
     # absent from checkpoints written before it existed: those trained without augmentation, the default
@@ -151,10 +164,13 @@ def _evaluate(model, x, y, batch_size, loss_fn):
 
 def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig = TrainConfig(), groups=None,
           split: tuple[np.ndarray, np.ndarray] | None = None, progress: bool = True, log=print,
-          preprocess: PreprocessConfig | None = None) -> TrainResult:
+          preprocess: PreprocessConfig | None = None, deployments: dict | None = None) -> TrainResult:
     """Train on X [N, n_branches, V, T] / labels y [N] with an 80:20 stratified (grouped) split.
 
-    `split` overrides the split with explicit (train, validation) indices. `preprocess` is the configuration
+    `split` overrides the split with explicit (train, validation) indices. With ``cfg.val_split ==
+    "deployment"`` the split holds out motion sources and deployment regions (`holdout.holdout_split`) and
+    `deployments` must give the factors [N] per name (`holdout.deployment_factors`); the description of what
+    was held out is returned in ``TrainResult.extra["holdout"]``. `preprocess` is the configuration
     that made X; augmentation (`cfg.augment`) needs it to convert its time shift to columns and for the dB
     floor (None: the default `PreprocessConfig` at X's size). The returned model carries
     the weights of the epoch with the lowest validation loss (early stopping after `patience` epochs
@@ -181,9 +197,19 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
                             f"floor_db ({preprocess.floor_db:g} dB)")
     setup_torch(cfg.seed, cfg.threads)
     t_start = time.perf_counter()
+    extra = {}
     try:
-        tr, va = split if split is not None else split_indices(
-            y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)
+        if split is not None:
+            tr, va = split
+        elif cfg.val_split == "deployment":
+            if deployments is None or groups is None:
+                raise TrainingError("val_split 'deployment' needs the items' groups and deployment factors")
+            from processing.classifier.holdout import holdout_split
+
+            tr, va, extra["holdout"] = holdout_split(y, groups, deployments, cfg.seed, cfg.val_fraction,
+                                                     cfg.holdout_factors, cfg.holdout_tail)
+        else:
+            tr, va = split_indices(y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)
     except ValueError as e:  # too few samples or groups for the requested split
         raise TrainingError(f"cannot split the data: {one_line(e)}") from None
     xt, yt = torch.from_numpy(np.ascontiguousarray(x[tr])), torch.from_numpy(np.asarray(y)[tr])
@@ -194,6 +220,7 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     gen = torch.Generator().manual_seed(cfg.seed)
     hist = {k: [] for k in ("train_loss", "train_acc", "val_loss", "val_acc", "seconds")}
     best, best_state, best_epoch, waited = np.inf, copy.deepcopy(model.state_dict()), 0, 0
+    states = []  # every epoch's weights, for cfg.average (the network is small: ~1 MB each)
     bar = tqdm(range(1, cfg.epochs + 1), desc="training", unit="epoch", disable=not progress)
     for epoch in bar:
         t0 = time.perf_counter()
@@ -223,6 +250,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         hist["val_acc"].append(vacc)
         hist["seconds"].append(time.perf_counter() - t0)
         bar.set_postfix(loss=f"{hist['train_loss'][-1]:.3f}", val_loss=f"{vl:.3f}", val_acc=f"{vacc:.3f}")
+        if cfg.average != "none":
+            states.append(copy.deepcopy(model.state_dict()))
         if not xv.shape[0] or vl < best - cfg.min_delta:
             best, best_state, best_epoch, waited = vl, copy.deepcopy(model.state_dict()), epoch, 0
         else:
@@ -232,11 +261,66 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
                     log(f"early stop after epoch {epoch}; best epoch {best_epoch} (val loss {best:.4f})")
                 break
     model.load_state_dict(best_state)
+    if cfg.average == "window" and xv.shape[0]:
+        lo, hi = averaging_window(hist["val_loss"], best_epoch, cfg.average_tolerance)
+        model.load_state_dict(average_states(states[lo - 1:hi]))
+        recompute_batch_norm(model, xt, cfg.batch_size)
+        vl, vacc = _evaluate(model, xv, yv, 256, loss_fn)
+        extra["averaged"] = {"epochs": [lo, hi], "val_loss": vl, "val_acc": vacc,
+                             "best_val_loss": float(best), "best_val_acc": float(hist["val_acc"][best_epoch - 1])}
+        if log:
+            log(f"weights averaged over epochs {lo}-{hi}: val loss {vl:.4f} (best single epoch {best:.4f}), "
+                f"val acc {vacc:.3f}")
     model.eval()
     return TrainResult(model=model, history=hist, train_idx=tr, val_idx=va, best_epoch=best_epoch,
-                       seconds=time.perf_counter() - t_start)
+                       seconds=time.perf_counter() - t_start, extra=extra)
+
+
+def averaging_window(val_loss: list[float], best_epoch: int, tolerance: float) -> tuple[int, int]:
+    """First and last epoch (1-based, inclusive) of the contiguous run around `best_epoch` whose validation
+    loss is at most (1 + `tolerance`) times the loss at `best_epoch`."""
+    v = np.asarray(val_loss, float)
+    b = best_epoch - 1
+    limit = v[b] * (1.0 + tolerance) if v[b] >= 0 else v[b] * (1.0 - tolerance)
+    lo = hi = b
+    while lo > 0 and v[lo - 1] <= limit:
+        lo -= 1
+    while hi + 1 < v.size and v[hi + 1] <= limit:
+        hi += 1
+    return lo + 1, hi + 1
+
+
+def average_states(states: list[dict]) -> dict:
+    """Element-wise mean of state dicts (floating tensors; integer buffers such as BatchNorm's batch count are
+    taken from the last state)."""
+    out = {}
+    for key, last in states[-1].items():
+        if last.is_floating_point():
+            out[key] = torch.stack([s[key] for s in states]).mean(dim=0)
+        else:
+            out[key] = last.clone()
+    return out
+
+
+def recompute_batch_norm(model: nn.Module, x: torch.Tensor, batch_size: int) -> None:
+    """Re-estimate every BatchNorm layer's running mean and variance on inputs `x` [N, ...] (cumulative average
+    over un-augmented batches, as torch.optim.swa_utils.update_bn): averaged weights need their own statistics."""
+    bns = [m for m in model.modules() if isinstance(m, nn.modules.batchnorm._BatchNorm)]
+    if not bns:
+        return
+    momenta = [m.momentum for m in bns]
+    for m in bns:
+        m.reset_running_stats()
+        m.momentum = None
+    model.train()
+    with torch.no_grad():
+        for s in range(0, x.shape[0], batch_size):
+            model(x[s:s + batch_size])
+    for m, mom in zip(bns, momenta):
+        m.momentum = mom
+    model.eval()
 
 
 __all__ = ["AugmentConfig", "CHECKPOINT_VERSION", "DEFAULT_THREADS", "TrainConfig", "TrainResult",
-           "auto_threads", "dataset_arrays", "load_checkpoint", "save_checkpoint", "setup_torch",
+           "auto_threads", "average_states", "averaging_window", "dataset_arrays", "recompute_batch_norm", "load_checkpoint", "save_checkpoint", "setup_torch",
            "split_indices", "train"]
