@@ -55,6 +55,21 @@ def _add_preprocess_model_args(p) -> None:
     g.add_argument("--val-fraction", type=float, default=0.2, help="validation share (default 0.2)")
     g.add_argument("--no-group-split", action="store_true",
                    help="split items freely (default: all copies of one motion source on one side)")
+    g.add_argument("--val-split", choices=("groups", "deployment"), default="groups",
+                   help="groups: validate on held-out motion sources (default); deployment: also on held-out tails "
+                   "of the simulated deployments (radar distance, height, tilt, beam, room, body, takes), none of "
+                   "which reach training, so early stopping picks what extrapolates (see processing.classifier."
+                   "holdout)")
+    g.add_argument("--holdout-factors", type=int, default=2, help="--val-split deployment: deployment factors "
+                   "with a held-out tail, drawn from the seed (default 2)")
+    g.add_argument("--average", choices=("none", "window"), default="none",
+                   help="window: keep the mean of the weights of the epochs around the best one whose validation "
+                   "loss is within --average-tolerance of it (flat-minimum weight averaging), BatchNorm statistics "
+                   "re-estimated (default none: the best epoch's weights)")
+    g.add_argument("--average-tolerance", type=float, default=0.2, help="--average window: relative validation-loss "
+                   "excess an averaged epoch may have (default 0.2)")
+    g.add_argument("--holdout-tail", type=float, default=0.125, help="--val-split deployment: share of items in "
+                   "each held-out tail (default 0.125)")
     g.add_argument("--seed", type=seed_int, default=0)
     g.add_argument("--threads", type=positive_int,
                    help="CPU threads torch uses while training (intra-op parallelism of its convolutions and "
@@ -135,7 +150,9 @@ def _configs(args):
                         time_pool=args.time_pool)
     tc = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, patience=args.patience,
                      val_fraction=args.val_fraction, group_split=not args.no_group_split, seed=args.seed,
-                     threads=args.threads, augment=_augment_config(args))
+                     threads=args.threads, augment=_augment_config(args), val_split=args.val_split,
+                     holdout_factors=args.holdout_factors, holdout_tail=args.holdout_tail, average=args.average,
+                     average_tolerance=args.average_tolerance)
     if tc.augment.enabled and tc.augment.db_floor >= pre.floor_db:
         raise _user_error()(f"--aug-db {tc.augment.db_floor:g} must be below --floor-db {pre.floor_db:g}")
     return links, pre, model, tc
@@ -159,8 +176,14 @@ def train_spec(spec: str, args, out: Path, log=print):
     t_load = time.perf_counter() - t0
     log(f"{len(idx)} items from {spec} ({', '.join(f'{k}={v}' for k, v in zip(*np.unique([ACTIVITIES[i] for i in y], return_counts=True)))}); "
         f"loaded in {t_load:.1f} s")
+    deployments = None
+    if tcfg.val_split == "deployment":
+        from processing.classifier.holdout import deployment_factors
+
+        deployments = deployment_factors([reader.entries[i] for i in idx])
     try:
-        res = train(x, y, mcfg, tcfg, groups=groups, progress=not args.quiet, log=log, preprocess=pre)
+        res = train(x, y, mcfg, tcfg, groups=groups, progress=not args.quiet, log=log, preprocess=pre,
+                    deployments=deployments)
     except ValueError as e:
         raise _user_error()(str(e)) from None
     clf = Classifier(model=res.model, preprocess=pre, classes=list(ACTIVITIES), links=links)
@@ -168,7 +191,8 @@ def train_spec(spec: str, args, out: Path, log=print):
     rep = classification_report(y[va], clf.predict(x[va]), ACTIVITIES)
     meta = {"train_spec": spec, "n_train": int(res.train_idx.size), "n_val": int(va.size), "best_epoch": res.best_epoch,
             "train_seconds": res.seconds, "load_seconds": t_load, "train_config": tcfg.model_dump(mode="json"),
-            "val_items": [reader.entries[idx[i]]["item_id"] for i in va], "val_accuracy": rep.accuracy}
+            "val_items": [reader.entries[idx[i]]["item_id"] for i in va], "val_accuracy": rep.accuracy,
+            "holdout": res.extra.get("holdout"), "averaged": res.extra.get("averaged")}
     # the DSP settings of the training data, so that `evaluate --recordings` processes real IQ the same way
     dsps = {json.dumps(reader.entries[i].get("params", {}).get("radar", {}).get("dsp"), sort_keys=True) for i in idx}
     meta["dsp"] = json.loads(dsps.pop()) if len(dsps) == 1 else None
