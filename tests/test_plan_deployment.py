@@ -161,3 +161,56 @@ def test_an_item_in_its_drawn_room_simulates_on_the_mesh_backend():
     rec = run_item(it)
     assert rec["entry"]["params"]["room"] == it.room and it.room.startswith("room:")
     assert np.isfinite(rec["links"]["radar1"]["p_vt"]).all()
+
+
+def test_aimed_radar_tilts_at_the_trunk_from_its_height_distance_and_the_stature():
+    # paper: antenna 1.5 m high, 3 m away, person 1.8 m, aim at 0.5 h = 0.9 m: tilt = atan(0.6 / 3) = 11.31 deg
+    # below horizontal; an aiming error of +2 deg adds to it; a radar at 0.5 m then looks up, atan(-0.4 / 3)
+    from rtchannel.dataset.plan_physical import AimDraw
+
+    rng = np.random.default_rng(0)
+    assert AimDraw(height_frac=0.5, error_deg=0.0).downtilt_deg((3.0, 0.0, 1.5), 1.8, rng) == pytest.approx(
+        np.degrees(np.arctan(0.2)), abs=1e-12)
+    assert AimDraw(height_frac=0.5, error_deg=2.0).downtilt_deg((0.0, -3.0, 1.5), 1.8, rng) == pytest.approx(
+        np.degrees(np.arctan(0.2)) + 2.0, abs=1e-12)
+    assert AimDraw(height_frac=0.5, error_deg=0.0).downtilt_deg((3.0, 0.0, 0.5), 1.8, rng) == pytest.approx(
+        -np.degrees(np.arctan(0.4 / 3)), abs=1e-12)
+    # in a plan: every item's tilt lies between the aim at the highest and the lowest trunk point, +- the error
+    items = expand(_plan(physical={"downtilt_deg": None, "aim": {"height_frac": [0.45, 0.6], "error_deg": [-8, 8]},
+                                   "distance_m": [1.2, 5.0], "height_m": [0.5, 1.6]}))
+    tilts = []
+    for it in items:
+        x, y, z = it.radar["links"][0]["tx"]
+        d, h = np.hypot(x, y), it.motion["height"]
+        lo, hi = (np.degrees(np.arctan2(z - f * h, d)) for f in (0.6, 0.45))
+        tilt = it.radar["antenna"]["downtilt_deg"]
+        assert lo - 8 - 1e-9 <= tilt <= hi + 8 + 1e-9
+        tilts.append(tilt - np.degrees(np.arctan2(z - 0.525 * h, d)))
+    assert -8 < min(tilts) < -5 and 5 < max(tilts) < 8  # the error is drawn across its range
+
+
+def test_drawn_beam_takes_its_peak_gain_from_the_beamwidths():
+    # Balanis eq. 2-27: G = 32400 / (HPBW_az HPBW_el) [deg^2]; 24 x 24 deg -> 56.25 = 17.50 dBi (the kit's quoted 17)
+    from processing.radar.antenna import practical_gain_dbi
+    from rtchannel.dataset.plan_physical import BeamDraw
+
+    assert practical_gain_dbi(24, 24) == pytest.approx(10 * np.log10(56.25), abs=1e-12)
+    b = BeamDraw(e_plane_deg=20.0, h_over_e=1.25).draw(np.random.default_rng(0))  # vertical elements: E = elevation
+    assert (b["hpbw_el_deg"], b["hpbw_az_deg"]) == (20.0, 25.0)
+    assert b["peak_gain_dbi"] == pytest.approx(10 * np.log10(32400 / 500), abs=1e-12)
+    h = BeamDraw(e_plane_deg=20.0, h_over_e=1.25).draw(np.random.default_rng(0), polarisation="H")
+    assert (h["hpbw_el_deg"], h["hpbw_az_deg"]) == (25.0, 20.0)
+    items = expand(_plan(physical={"hpbw_el_deg": None, "beam": {"e_plane_deg": [18, 40], "h_over_e": [1.0, 1.3]}}))
+    gains = [it.radar["antenna"]["peak_gain_dbi"] for it in items]
+    # the widest beam (40 x 52 deg) gives 11.9 dBi, the narrowest (18 x 18) 20.0 dBi: never a narrow beam's gain
+    # on a wide beam
+    assert 11.9 <= min(gains) and max(gains) <= 20.01 and max(gains) - min(gains) > 3
+
+
+@pytest.mark.parametrize("bad", [{"aim": {"height_frac": 0.5}},  # with downtilt_deg of BASE
+                                 {"downtilt_deg": None, "aim": {"error_deg": [-50, 0]}},
+                                 {"beam": {"e_plane_deg": 20}, "hpbw_el_deg": 24},
+                                 {"beam": {"h_over_e": 0.5}}])
+def test_bad_aim_and_beam_fields_are_refused(bad):
+    with pytest.raises(ValidationError):
+        _plan(physical=bad)

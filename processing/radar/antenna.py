@@ -279,6 +279,16 @@ def kraus_gain_dbi(hpbw_az_deg: float, hpbw_el_deg: float, efficiency: float = 1
     return 10 * math.log10(41252.96 * efficiency / (hpbw_az_deg * hpbw_el_deg))
 
 
+def practical_gain_dbi(hpbw_az_deg: float, hpbw_el_deg: float) -> float:
+    """Peak gain [dBi] of a practical antenna with these half-power beamwidths [deg]: 10 log10(32400 /
+    (HPBW_az HPBW_el)) (Balanis, Antenna Theory, 4th ed., eq. 2-27: Kraus's 41253 with the side lobes and
+    losses of real antennas). A 24 x 24 deg beam gives 17.5 dBi, the gain quoted for the Glasgow kit's Yagis,
+    so drawing a beamwidth and taking the gain from it keeps the two consistent."""
+    if not (0 < hpbw_az_deg <= 180 and 0 < hpbw_el_deg <= 180):
+        raise InputError("practical_gain_dbi needs beamwidths in (0, 180] deg")
+    return 10 * math.log10(32400.0 / (hpbw_az_deg * hpbw_el_deg))
+
+
 def local_power_gain(spec, theta, phi, xp=NUMPY_OPS):
     """Linear power gain G(theta, phi) in the antenna's local frame, Sionna RT's convention: theta is the
     zenith angle from local z' (up), phi the azimuth from local x' (boresight) towards y' [rad].

@@ -65,6 +65,73 @@ class RoomDraw(_Model):
         return room_name(lo[0] - m[0], hi[0] + m[1], lo[1] - m[2], hi[1] + m[3], h)
 
 
+def _value(v, rng) -> float:
+    """A field's value: drawn uniformly from `rng` for a (low, high) range."""
+    return float(rng.uniform(*v)) if isinstance(v, tuple) else float(v)
+
+
+class AimDraw(_Model):
+    """How the radar is aimed at the person: the boresight passes through a point on the person's vertical
+    axis at `height_frac` x stature, plus an aiming error. The downtilt is then atan((h_antenna - h_aim) / d)
+    + error for an antenna at height h_antenna and horizontal distance d (negative: tilted up), so a low
+    radar near a tall person looks up and a high one looks down, as an operator aims it."""
+
+    height_frac: Scalar = Field((0.45, 0.6), description="aim point height / stature: the trunk, from the hips "
+                                "(~0.5 h) to the chest (~0.72 h); the body's centre of mass sits at ~0.55 h "
+                                "(Winter, Biomechanics and Motor Control of Human Movement, 4th ed., table 4.1)")
+    error_deg: Scalar = Field((-8.0, 8.0), description="aiming error in elevation [deg] (value or [low, high]): "
+                              "aimed by eye and checked on the live display, the aim point stays inside the "
+                              "half-power beam (a third of a 24 deg beam either way)")
+
+    @field_validator("height_frac")
+    @classmethod
+    def _frac(cls, v):
+        return _within(v, 0.0, 1.2, "aim.height_frac")
+
+    @field_validator("error_deg")
+    @classmethod
+    def _err(cls, v):
+        return _within(v, -45.0, 45.0, "aim.error_deg", " deg")
+
+    def downtilt_deg(self, antenna: tuple, stature_m: float, rng) -> float:
+        """The drawn downtilt [deg] of an antenna at `antenna` (x, y, z) [m] aimed at a person of stature
+        `stature_m` [m] standing on the vertical through the origin, clipped to the antenna model's +-60 deg."""
+        d = max(float(np.hypot(antenna[0], antenna[1])), 1e-6)
+        aim = _value(self.height_frac, rng) * stature_m
+        tilt = np.degrees(np.arctan2(float(antenna[2]) - aim, d)) + _value(self.error_deg, rng)
+        return float(np.clip(tilt, -60.0, 60.0))
+
+
+class BeamDraw(_Model):
+    """The Yagis' beam drawn per placement: E-plane and H-plane half-power beamwidths, with the peak gain taken
+    from them (`processing.radar.antenna.practical_gain_dbi`, Balanis eq. 2-27), so a wide beam never keeps a
+    narrow beam's gain. A vertically polarised Yagi (elements vertical) has its E-plane in elevation; a
+    horizontally polarised one in azimuth."""
+
+    e_plane_deg: Scalar = Field((18.0, 40.0), description="E-plane HPBW [deg] (value or [low, high])")
+    h_over_e: Scalar = Field((1.0, 1.3), description="H-plane HPBW / E-plane HPBW (a Yagi's H-plane is the "
+                             "wider: the element pattern has no null there), capped at 170 deg")
+
+    @field_validator("e_plane_deg")
+    @classmethod
+    def _e(cls, v):
+        return _within(v, 5.0, 170.0, "beam.e_plane_deg", " deg")
+
+    @field_validator("h_over_e")
+    @classmethod
+    def _ratio(cls, v):
+        return _within(v, 1.0, 3.0, "beam.h_over_e")
+
+    def draw(self, rng, polarisation: str = "V") -> dict:
+        """Antenna fields {hpbw_az_deg, hpbw_el_deg, peak_gain_dbi} of one drawn beam."""
+        from processing.radar.antenna import practical_gain_dbi
+
+        e = _value(self.e_plane_deg, rng)
+        h = min(e * _value(self.h_over_e, rng), 170.0)
+        az, el = (h, e) if polarisation == "V" else (e, h)
+        return {"hpbw_az_deg": az, "hpbw_el_deg": el, "peak_gain_dbi": practical_gain_dbi(az, el)}
+
+
 class PhysicalLayer(_Model):
     """Physical-layer augmentation: directions (rotations of all antennas about z), waveforms, link sets."""
 
@@ -90,6 +157,11 @@ class PhysicalLayer(_Model):
                                     "[low, high] drawn per item), 0.1..5. None: the link sets' heights")
     room: RoomDraw | None = Field(None, description="mesh backends: a box room drawn per motion around the "
                                   "person and its items' antennas (None: the backend's scene option)")
+    aim: AimDraw | None = Field(None, description="glasgow kit: aim the beam at the person (tilt from the antenna "
+                                "height, the distance and the stature, plus an aiming error) instead of drawing "
+                                "downtilt_deg")
+    beam: BeamDraw | None = Field(None, description="glasgow kit: draw the Yagis' E- and H-plane beamwidths and take "
+                                  "the peak gain from them, instead of hpbw_el_deg")
 
     @field_validator("distance_m")
     @classmethod
@@ -136,8 +208,14 @@ class PhysicalLayer(_Model):
     def _angles(self) -> "PhysicalLayer":
         if self.directions is not None and self.angles_deg is not None:
             raise InputError("give either 'directions' or 'angles_deg', not both")
-        if self.radar != "glasgow" and (self.downtilt_deg is not None or self.hpbw_el_deg is not None):
-            raise InputError("downtilt_deg and hpbw_el_deg apply to radar: glasgow (the seed's horns are fixed)")
+        if self.radar != "glasgow" and any(x is not None for x in (self.downtilt_deg, self.hpbw_el_deg, self.aim,
+                                                                     self.beam)):
+            raise InputError("downtilt_deg, hpbw_el_deg, aim and beam apply to radar: glasgow (the seed's horns are "
+                             "fixed)")
+        if self.aim is not None and self.downtilt_deg is not None:
+            raise InputError("give either 'aim' or 'downtilt_deg', not both")
+        if self.beam is not None and self.hpbw_el_deg is not None:
+            raise InputError("give either 'beam' or 'hpbw_el_deg', not both")
         if isinstance(self.directions, list):
             for d in self.directions:
                 direction_angles(d)  # raises a ValueError naming the bad direction
