@@ -1,4 +1,5 @@
 """The `glasgow` dataset preset and the motion composition it relies on (back-and-forth walks, fixed clips)."""
+import json
 
 import numpy as np
 import pytest
@@ -44,16 +45,21 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
         # antennas 0.5-1.6 m high
         lo = {"walk": 2.6, "fall": 2.8}.get(it.activity, 1.2)
         assert lo <= np.hypot(*link.tx_pos[:2]) <= 5.0 and 0.5 <= link.tx_pos[2] <= 1.6 and it.angle_deg == 0.0
-        # boresight toward the person's vertical axis, tilted by the drawn downtilt (-5..15 deg), and a drawn
-        # elevation beamwidth (18-45 deg): neither is published for the kit
+        # boresight toward the person's vertical axis, aimed at the trunk (0.45-0.6 of the stature) +-8 deg, and
+        # a drawn beam whose peak gain follows from it (Balanis eq. 2-27)
         b = radar.antenna.boresight_unit(link.tx_pos)
         np.testing.assert_allclose(b[:2] / np.hypot(*b[:2]), -link.tx_pos[:2] / np.hypot(*link.tx_pos[:2]),
                                    atol=1e-12)
         tilt = radar.antenna.downtilt_deg
-        assert -5.0 <= tilt <= 15.0 and np.degrees(np.arcsin(b[2])) == pytest.approx(-tilt, abs=1e-9)
-        assert 18.0 <= radar.antenna.hpbw_el_deg <= 45.0
+        d, h, stature = np.hypot(*link.tx_pos[:2]), link.tx_pos[2], it.motion["height"]
+        aimed = [np.degrees(np.arctan2(h - f * stature, d)) for f in (0.6, 0.45)]
+        assert aimed[0] - 8.0 - 1e-9 <= tilt <= aimed[1] + 8.0 + 1e-9
+        assert np.degrees(np.arcsin(b[2])) == pytest.approx(-tilt, abs=1e-9)
+        az, el = radar.antenna.hpbw_az_deg, radar.antenna.hpbw_el_deg
+        assert 18.0 <= min(az, el) <= 40.0 and 1.0 <= max(az, el) / min(az, el) <= 1.3 + 1e-9
+        assert radar.antenna.peak_gain_dbi == pytest.approx(10 * np.log10(32400 / (az * el)), abs=1e-12)
         assert it.motion["clip_s"] == (10.0 if it.activity == "walk" else 5.0)
-    # the two placements of one motion are drawn independently, and cover the ranges
+    # the four placements of one motion are drawn independently, and cover the ranges
     dist = np.array([np.hypot(*it.radar["links"][0]["tx"][:2]) for it in items if it.activity == "sit"])
     assert dist.min() < 1.5 and dist.max() > 4.7
     # real motion capture: walks of 13 people's takes, the two parts of 75_17, OpenCap, HDM05, MSM2017
@@ -69,7 +75,12 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     for it in items[:2]:
         scale = it.gain_set["scale"]
         assert scale["chest"] == scale["pelvis"] > 1 > scale["left_shin"] > scale["left_foot"] == scale["right_toe"]
-    assert {it.gain_set["name"] for it in items} == {"rcs", "rcs_jitter"}
+    assert {it.gain_set["name"] for it in items} == {"rcs_jitter"}
+    # every item of a motion is its own deployment: four placements, none a copy of another
+    placements = {}
+    for it in items:
+        placements.setdefault(it.motion["key"], set()).add(json.dumps(it.radar, sort_keys=True))
+    assert all(len(v) == 4 for v in placements.values())
     # no campaign's onsets: every activity lies anywhere in its clip; people of 1.45-1.95 m at 0.6-1.6x pace,
     # facing the radar +-60 deg; walks of 1-4 legs, either way first, at their own speed
     assert {it.motion["clip_start_s"] for it in items} == {"anywhere"}
