@@ -153,7 +153,14 @@ def shaped_points(m: MacroValues | None) -> np.ndarray:
     t = _targets()
     if m is None:
         return t.rest
-    return t.rest + (_coefficients(m) @ t.deltas.reshape(len(t.deltas), -1)).reshape(t.rest.shape)
+    return shaped_points_many([m])[0]
+
+
+def shaped_points_many(ms: list[MacroValues]) -> np.ndarray:
+    """`shaped_points` of several bodies [n, P, 3] in one pass over the targets (they are memory-bound)."""
+    t = _targets()
+    c = np.stack([_coefficients(m) for m in ms])
+    return t.rest + (c @ t.deltas.reshape(len(t.deltas), -1)).reshape(len(ms), *t.rest.shape)
 
 
 def joints_from_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -164,5 +171,5 @@ def joints_from_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.stack([points[r].mean(axis=0) for r in tails]))
 
 
-__all__ = ["MacroValues", "N_SKIN", "WEIGHT_MAX", "target_weights", "shaped_points", "joints_from_points",
+__all__ = ["MacroValues", "N_SKIN", "WEIGHT_MAX", "target_weights", "shaped_points", "shaped_points_many", "joints_from_points",
            "asset_path"]
