@@ -6,16 +6,18 @@ has ended by 18 (WHO 2007 growth reference), and MakeHuman's 18-year-old would b
 child, with a child's head-to-body ratio. Older than 90 uses the old anchor.
 
 Stature: MakeHuman's height slider is set so that the body (at average weight) is as tall as the requested
-stature, which keeps MakeHuman's allometry (its tall bodies have relatively longer legs: hip height 0.48 of
-stature at 1.36 m, 0.52 at 1.73 m, 0.55 at 2.45 m); the body is then scaled uniformly to the exact stature.
+stature, which keeps MakeHuman's allometry (its tall bodies have relatively longer legs: the man's hip joint
+at 0.50 of the stature at 1.36 m, 0.53 at 1.73 m, 0.56 at 2.45 m); the body is then scaled uniformly to the
+exact stature.
 
 Mass: body mass = mesh volume x whole-body density, and BMI = mass / stature^2. Density follows from body
 fat (two-compartment model, Siri 1961: fat 0.9007 g/cm^3, fat-free mass 1.100 g/cm^3), and body fat from
 BMI, age and sex (Deurenberg, Weststrate & Seidell 1991, Br J Nutr 65:105, SEE ~4 % fat):
 BF% = 1.20 BMI + 0.23 age - 10.8 sex - 5.4 (sex 1 male, 0 female), clipped to 5..60 %. This gives
-1.00-1.08 g/cm^3 over BMI 17-40 (a lean young man 1.07, an obese older woman 0.98), the range of
-hydrostatic weighing. The mesh is a closed skin, so its volume includes the air in the lungs (~3 L at rest,
-~4 % of the volume): the mass it implies is that much high, within the Du Bois check's tolerance.
+0.97-1.08 g/cm^3 over BMI 17-40 and ages 18-98 (a lean 18-year-old man 1.08, an obese 70-year-old woman
+0.97), the range of hydrostatic weighing. Tissue density leaves out the air in the lungs (~3 L at rest): a
+real body of the BMI encloses ~4 % more volume than the shaped one, a bias left in (within the Du Bois
+check's tolerance).
 
 Weight and muscle: MakeHuman's weight slider changes the volume strongly only on its min-muscle anchors (at
 average muscle, min to max weight is BMI ~17 to ~24; at min muscle ~14 to ~40). So the requested muscle is
