@@ -301,3 +301,24 @@ def test_a_heavier_body_returns_more_power():
         area.append(_area(shaped_vertices("full", r.rig.shape, 1.75)))
     assert power[0] / power[1] > 1.2
     assert power[0] / power[1] == pytest.approx(area[0] / area[1], rel=0.10)
+
+
+def test_skin_scatterers_and_points_follow_the_shaped_body():
+    """The seed's 21 skin markers stay on the shaped skin (the same triangles, barycentric), and the points
+    backend's bone scatterers ride the shaped rig."""
+    from rtchannel.backends.points import point_paths, scatterer_trajectories
+    from rtchannel.body.skin_markers import skin_markers, skin_scatterer_trajectories
+    from rtchannel.radar import RadarConfig
+
+    m = _walk(height=1.7)
+    r = reshape_motion(m, BodyShape(sex="female", bmi=38, age_years=50))
+    av = load_avatar("full")
+    rest = replace(r, rotations=np.tile(np.eye(3), (2, 31, 1, 1)), positions=np.stack([r.rig.rest] * 2))
+    on_skin = skin_scatterer_trajectories(av, rest)[0]
+    mk = skin_markers(av)
+    expect = np.einsum("mi,mij->mj", mk.bary, shaped_vertices("full", r.rig.shape, 1.7)[av.faces[mk.faces]])
+    np.testing.assert_allclose(on_skin, expect, atol=1e-12)
+    assert np.abs(on_skin - skin_scatterer_trajectories(av, replace(rest, rig=avatar_rig(1.7)))[0]).max() > 0.02
+    traj = scatterer_trajectories(r)
+    assert np.abs(traj - scatterer_trajectories(m)).max() > 0.01
+    assert np.isfinite(point_paths(r, RadarConfig())["radar1"].delays).all()
