@@ -108,10 +108,12 @@ class BodyShapeRanges(BaseModel):
     Attributes:
         male_fraction: share of male bodies (the rest female); 0.5, as in the adult population.
         age_years: [low, high] years. 18-98: adults; the Glasgow radar dataset's participants were 21-98
-            years old (Fioranelli et al., "Radar signatures of human activities", University of Glasgow 2019).
-        bmi: [low, high] kg/m^2. 17-40: about the 1st to 99th percentile of adult BMI worldwide (NCD Risk
-            Factor Collaboration, Lancet 2017, 390:2627 and Lancet 2016, 387:1377; WHO: BMI < 18.5 underweight,
-            >= 40 obesity class III); uniform, so the thin and the heavy are not rare in training.
+            years old ("Radar signatures of human activities", University of Glasgow 2019, DOI
+            10.5525/gla.researchdata.848).
+        bmi: [low, high] kg/m^2. 17-40: from WHO's moderate thinness (< 17) to obesity class III (>= 40);
+            worldwide ~9-10 % of adults are below 18.5 and 0.6 % of men, 1.6 % of women at or above 40 (NCD Risk
+            Factor Collaboration, Lancet 2016, 387:1377; 2017, 390:2627). Uniform, so that the thin and the
+            heavy are not rare in training.
         muscle: [low, high] of MakeHuman's muscle slider; its whole range (no population data exists for it).
         proportions: [low, high] of MakeHuman's proportions slider; its whole range (likewise).
     """
