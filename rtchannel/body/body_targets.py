@@ -56,9 +56,10 @@ class MacroValues(NamedTuple):
     proportions: float = 0.5
 
 
-def _three(v: float) -> dict[str, float]:
+def anchor_weights(v: float) -> tuple[float, float, float]:
+    """(min, average, max) anchor weights of a muscle or weight slider value `v` (linear past 1)."""
     lo, hi = max(0.0, 1.0 - 2.0 * v), max(0.0, 2.0 * v - 1.0)
-    return {"min": lo, "average": 1.0 - lo - hi, "max": hi}
+    return lo, 1.0 - lo - hi, hi
 
 
 def target_weights(m: MacroValues) -> dict[str, float]:
@@ -71,8 +72,9 @@ def target_weights(m: MacroValues) -> dict[str, float]:
     sex = {"female": 1.0 - m.gender, "male": m.gender}
     old = 2.0 * m.age - 1.0
     age = {"young": 1.0 - old, "old": old}
-    muscle = {f"{k}muscle": w for k, w in _three(m.muscle).items()}
-    weight = {f"{k}weight": w for k, w in _three(m.weight).items()}
+    levels = ("min", "average", "max")
+    muscle = {f"{k}muscle": w for k, w in zip(levels, anchor_weights(m.muscle))}
+    weight = {f"{k}weight": w for k, w in zip(levels, anchor_weights(m.weight))}
     height = {"minheight": max(0.0, 1.0 - 2.0 * m.height), "maxheight": max(0.0, 2.0 * m.height - 1.0)}
     prop = {"uncommonproportions": max(0.0, 1.0 - 2.0 * m.proportions),
             "idealproportions": max(0.0, 2.0 * m.proportions - 1.0)}
@@ -171,5 +173,5 @@ def joints_from_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.stack([points[r].mean(axis=0) for r in tails]))
 
 
-__all__ = ["MacroValues", "N_SKIN", "WEIGHT_MAX", "target_weights", "shaped_points", "shaped_points_many", "joints_from_points",
-           "asset_path"]
+__all__ = ["MacroValues", "N_SKIN", "WEIGHT_MAX", "anchor_weights", "target_weights", "shaped_points",
+           "shaped_points_many", "joints_from_points", "asset_path"]

@@ -138,11 +138,15 @@ class BodyShapeRanges(BaseModel):
 
 
 def draw_body_shape(rng: np.random.Generator, ranges: BodyShapeRanges | dict | None = None) -> BodyShape:
-    """A body shape drawn from `ranges` (default `BodyShapeRanges()`) with the generator `rng`: sex, then
-    age, BMI, muscle and proportions, uniform within their ranges (five draws, always in this order)."""
-    r = BodyShapeRanges.model_validate(ranges or {}) if not isinstance(ranges, BodyShapeRanges) else ranges
+    """A body shape drawn from `ranges` (a `BodyShapeRanges` or its dict; default `BodyShapeRanges()`) with
+    the numpy generator `rng`: sex, then age, BMI, muscle and proportions, uniform within their ranges (five
+    uniform draws, always in this order, so a seeded generator gives the same shape)."""
+    r = ranges if isinstance(ranges, BodyShapeRanges) else BodyShapeRanges.model_validate(ranges or {})
     u = rng.random(5)
-    pick = lambda lo_hi, x: float(lo_hi[0] + x * (lo_hi[1] - lo_hi[0]))  # noqa: E731
+
+    def pick(lo_hi: tuple[float, float], x: float) -> float:
+        return float(lo_hi[0] + x * (lo_hi[1] - lo_hi[0]))
+
     return BodyShape(sex=float(u[0] < r.male_fraction), age_years=pick(r.age_years, u[1]), bmi=pick(r.bmi, u[2]),
                      muscle=pick(r.muscle, u[3]), proportions=pick(r.proportions, u[4]))
 
@@ -182,14 +186,14 @@ def reshape_motion(motion: Motion, shape: BodyShape | dict | None) -> Motion:
         if p >= 0:
             pos[:, j] = pos[:, p] + rot[:, p] @ (new[j] - new[p])
     params = {**motion.params, "body_shape": None if shape is None else shape.model_dump()}
-    out = replace(motion, rig=rig, positions=pos, params=params)
     # Bent legs (sitting, stooping) drop the hips by the shin, not the hip height: lift each frame so that its
     # lowest skin point is k times as high as before (on the floor where it was on the floor).
     probe = load_avatar(_FLOOR_LOD)
     low_old = skin_vertices(probe, motion)[..., 2].min(axis=1)
-    low_new = skin_vertices(probe, out)[..., 2].min(axis=1)
-    pos[..., 2] += (k * low_old - low_new)[:, None]
-    return out
+    low_new = skin_vertices(probe, replace(motion, rig=rig, positions=pos))[..., 2].min(axis=1)
+    lift = np.zeros_like(pos)
+    lift[..., 2] = (k * low_old - low_new)[:, None]
+    return replace(motion, rig=rig, positions=pos + lift, params=params)
 
 
 __all__ = ["BodyShape", "BodyShapeRanges", "DEFAULT_BMI", "draw_body_shape", "reshape_motion"]

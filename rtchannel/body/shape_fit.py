@@ -35,7 +35,7 @@ from scipy.optimize import brentq
 
 from processing.errors import InputError
 from rtchannel.body.avatar import load_avatar
-from rtchannel.body.body_targets import N_SKIN, WEIGHT_MAX, MacroValues, shaped_points_many
+from rtchannel.body.body_targets import N_SKIN, WEIGHT_MAX, MacroValues, anchor_weights, shaped_points_many
 
 YOUNG_YEARS, OLD_YEARS = 25.0, 90.0  # MakeHuman's adult age anchors (slider 0.5 and 1)
 FAT_DENSITY_KG_M3 = 900.7  # Siri 1961
@@ -75,7 +75,8 @@ def _volume(v, f):
     s = 0.0
     for k in range(f.shape[0]):
         a, b, c = v[f[k, 0]], v[f[k, 1]], v[f[k, 2]]
-        s += a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2]) + a[2] * (b[0] * c[1] - b[1] * c[0])
+        s += (a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2])
+              + a[2] * (b[0] * c[1] - b[1] * c[0]))
     return s / 6.0
 
 
@@ -96,15 +97,9 @@ def _height_slider(m: MacroValues, stature: float) -> float:
     if stature >= ends[2]:
         return 1.0
     k = 0 if stature < ends[1] else 1
-    a, b = z[k], z[k + 1] - z[k]  # the points are affine in the slider on each half (module doc)
+    a, b = z[k], z[k + 1] - z[k]  # exact: the points are affine in the slider on each half (body_targets)
     t = brentq(lambda t: float(np.ptp(a + t * b)) - stature, 0.0, 1.0, xtol=1e-9)
     return 0.5 * (k + t)
-
-
-def _anchor_weights(v: float) -> np.ndarray:
-    """(min, average, max) anchor weights of a muscle or weight slider value (linear past 1)."""
-    lo, hi = max(0.0, 1.0 - 2.0 * v), max(0.0, 2.0 * v - 1.0)
-    return np.array([lo, 1.0 - lo - hi, hi])
 
 
 class _Grid:
@@ -112,13 +107,13 @@ class _Grid:
     muscle and one weight anchor weight, so any (muscle, weight) body is their bilinear blend."""
 
     def __init__(self, m: MacroValues, stature: float, density: float):
-        self.m, self.stature, self.density = m, stature, density
+        self.stature, self.density = stature, density
         anchors = [m._replace(muscle=u, weight=w) for u in (0.0, 0.5, 1.0) for w in (0.0, 0.5, 1.0)]
         self.skin = shaped_points_many(anchors)[:, :N_SKIN].reshape(3, 3, N_SKIN, 3)
         self.faces = np.ascontiguousarray(load_avatar("full").faces, np.int64)
 
     def points(self, muscle: float, weight: float) -> np.ndarray:
-        c = np.outer(_anchor_weights(muscle), _anchor_weights(weight))
+        c = np.outer(anchor_weights(muscle), anchor_weights(weight))
         out = np.zeros((N_SKIN, 3))
         for i, j in zip(*np.nonzero(c)):  # at most four anchors
             out += c[i, j] * self.skin[i, j]
@@ -131,6 +126,7 @@ class _Grid:
         return float(_volume(p, self.faces)) * s**3 * self.density / self.stature**2
 
     def reaches(self, muscle: float, bmi: float, w_max: float = 1.0) -> bool:
+        """Whether some weight slider in [0, `w_max`] gives `bmi` at this muscle."""
         return self.bmi(muscle, 0.0) <= bmi <= self.bmi(muscle, w_max)
 
     def weight(self, muscle: float, bmi: float, w_max: float = 1.0) -> float:
