@@ -16,7 +16,7 @@ ages below MakeHuman's "young" anchor (baby, child) are not needed by adult rang
 (group ``body``, OBJ vertices 0..13379, in the avatar's order) and the ``joint-*`` helper cubes the rig
 (rig.cmu_mb.json) places bones at. Many target files are identical (e.g. every maxheight target): each
 distinct array is stored once. The deltas are exact: the files give 4 decimals of a decimetre, stored as
-int32 multiples of 1e-4 dm and LZMA-compressed (0.9 MB instead of 3 MB with numpy's zip deflate).
+int32 multiples of 1e-4 dm and LZMA-compressed (1.0 MB instead of 3.2 MB with numpy's zip deflate).
 """
 from __future__ import annotations
 
