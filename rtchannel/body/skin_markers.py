@@ -20,7 +20,7 @@ from rtchannel.body.avatar import Avatar, load_avatar
 from rtchannel.body.meshgeom import closest_points_on_mesh, ray_first_hit
 from rtchannel.body.scatterers import SCATTERER_NAMES, seed_scatterers
 from rtchannel.motion.pose import Motion
-from rtchannel.body.skinning import blend_points, matrix_derivatives
+from rtchannel.body.skinning import blend_points, matrix_derivatives, rest_for_motion
 
 _FRONT, _UP = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
 _MAX_RAY_M = 0.25
@@ -102,7 +102,10 @@ def skin_scatterer_trajectories(avatar: Avatar, motion: Motion, velocities: bool
     Returns positions, or (positions, velocities).
     """
     mk = skin_markers(avatar)
-    rest = mk.rest_points(avatar) * (motion.rig.height / avatar.height)
+    if motion.rig.shape is None:
+        rest = mk.rest_points(avatar) * (motion.rig.height / avatar.height)
+    else:  # the same surface points on the shaped skin
+        rest = np.einsum("mi,mij->mj", mk.bary, rest_for_motion(avatar, motion)[avatar.faces[mk.faces]])
     w = mk.weights(avatar)
     pos = blend_points(w, rest, motion.skinning_matrices())
     if not velocities:

@@ -11,7 +11,8 @@ motion both agree with a fine finite difference to well under 1 %; on 60 fps moc
 averages), so pick "central" to compare against frame-differenced positions.
 
 The avatar is rescaled to the motion's rig height when they differ, so a motion generated for a
-1.52 m rig drives a 1.52 m body whatever LOD or height the avatar was loaded with.
+1.52 m rig drives a 1.52 m body whatever LOD or height the avatar was loaded with; a motion on a shaped rig
+(`rtchannel.body.shape.reshape_motion`) drives the avatar in that shape (`rest_for_motion`).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from scipy.interpolate import CubicSpline
 
 from rtchannel.body.avatar import Avatar
 from rtchannel.body.meshgeom import vertex_face_incidence
+from rtchannel.body.shaped_avatar import shaped_vertices
 from rtchannel.motion import pose
 from rtchannel.motion.pose import Motion
 from processing.errors import InputError
@@ -48,7 +50,10 @@ class SkinnedSequence:
 
 
 def rest_for_motion(avatar: Avatar, motion: Motion) -> np.ndarray:
-    """The avatar's rest vertices [V, 3] (m) scaled to the height of the motion's rig."""
+    """The avatar's rest vertices [V, 3] (m) for the motion's rig: scaled to its height, and in its body shape
+    when it has one (``motion.rig.shape``: the same LOD's vertices shaped, `rtchannel.body.shaped_avatar`)."""
+    if motion.rig.shape is not None:
+        return shaped_vertices(avatar.lod, motion.rig.shape, motion.rig.height)
     if abs(avatar.rig.height - motion.rig.height) < 1e-9:
         return avatar.vertices
     return avatar.vertices * (motion.rig.height / avatar.rig.height)

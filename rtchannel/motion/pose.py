@@ -49,6 +49,9 @@ class Rig:
         rest: rest-pose joint (bone head) positions [J, 3] in metres, project frame.
         tails: rest-pose bone tail positions [J, 3] in metres.
         height: standing height (soles to top of head) of the body this rig drives [m].
+        shape: the body shape it drives, as hashable (name, value) pairs written by
+            `rtchannel.body.shape.reshape_motion` (the skinning shapes the avatar from them), or None for
+            the plain avatar. Scaling keeps the shape: the body stays geometrically similar.
     """
 
     names: tuple[str, ...]
@@ -56,6 +59,7 @@ class Rig:
     rest: np.ndarray
     tails: np.ndarray
     height: float
+    shape: tuple | None = None
 
     @property
     def n_joints(self) -> int:
