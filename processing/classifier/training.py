@@ -34,6 +34,8 @@ from processing.classifier.augment import AugmentConfig, augment_batch
 from processing.classifier.checkpoint import CHECKPOINT_VERSION, load_checkpoint, save_checkpoint
 from processing.classifier.model import ModelConfig, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess_links
+from processing.classifier.splits import holdout_split as _holdout_split
+from processing.classifier.splits import split_indices  # noqa: F401 - re-exported (its old home)
 from processing.errors import InputError, TrainingError, one_line
 
 DEFAULT_THREADS = 1  # pinned: results must not depend on the machine's load (see the module docstring)
@@ -55,7 +57,7 @@ class TrainConfig(BaseModel):
     group_split: bool = Field(True, description="keep all copies of one motion source on one side")
     val_split: Literal["groups", "deployment"] = Field(
         "groups", description="groups: validate on held-out motion sources (val_fraction of them); deployment: "
-        "also on held-out tails of deployment factors, none of which reach training (`holdout`)")
+        "also on held-out tails of deployment factors, none of which reach training (`splits`)")
     holdout_factors: int = Field(2, ge=0, le=10, description="val_split deployment: factors with a held-out tail")
     holdout_tail: float = Field(0.125, gt=0, lt=0.5, description="val_split deployment: share of items in each "
                                 "held-out tail")
@@ -89,35 +91,6 @@ def setup_torch(seed: int, threads: int | None = None) -> None:
     torch.manual_seed(seed)
     np.random.seed(seed % 2**32)
     torch.use_deterministic_algorithms(True)
-
-
-def split_indices(labels, groups=None, val_fraction: float = 0.2, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(train, validation) index arrays: stratified by label and, if `groups` is given, grouped.
-
-    Grouped splits use scikit-learn's StratifiedGroupKFold with round(1 / val_fraction) folds and take
-    as validation the fold holding most classes (then nearest in size to `val_fraction`), so no group straddles the two sides and class shares stay close to
-    the dataset's. Raises ValueError when there are too few groups or samples to split.
-    """
-    from sklearn.model_selection import StratifiedGroupKFold, train_test_split
-
-    labels = np.asarray(labels)
-    idx = np.arange(labels.size)
-    n_splits = max(2, int(round(1 / val_fraction)))
-    if groups is not None and len(set(groups)) < labels.size:
-        groups = np.asarray([str(g) for g in groups])
-        if np.unique(groups).size < n_splits:
-            raise InputError(f"grouped split needs at least {n_splits} motion sources, got {np.unique(groups).size}"
-                             " (use an ungrouped split)")
-        skf = StratifiedGroupKFold(n_splits=n_splits, shuffle=True, random_state=seed)
-        n_cls = np.unique(labels).size
-        # the fold that holds most classes, then whose size is nearest the requested share
-        tr, va = min(skf.split(idx, labels, groups), key=lambda f: (
-            n_cls - np.unique(labels[f[1]]).size, abs(f[1].size / labels.size - val_fraction)))
-        return np.sort(tr), np.sort(va)
-    _, counts = np.unique(labels, return_counts=True)
-    strat = labels if counts.min() >= 2 else None
-    tr, va = train_test_split(idx, test_size=val_fraction, random_state=seed, stratify=strat)
-    return np.sort(tr), np.sort(va)
 
 
 def dataset_arrays(reader, indices, links, pre: PreprocessConfig, progress: bool = False):
@@ -168,8 +141,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     """Train on X [N, n_branches, V, T] / labels y [N] with an 80:20 stratified (grouped) split.
 
     `split` overrides the split with explicit (train, validation) indices. With ``cfg.val_split ==
-    "deployment"`` the split holds out motion sources and deployment regions (`holdout.holdout_split`) and
-    `deployments` must give the factors [N] per name (`holdout.deployment_factors`); the description of what
+    "deployment"`` the split holds out motion sources and deployment regions (`splits.holdout_split`) and
+    `deployments` must give the factors [N] per name (`splits.deployment_factors`); the description of what
     was held out is returned in ``TrainResult.extra["holdout"]``. `preprocess` is the configuration
     that made X; augmentation (`cfg.augment`) needs it to convert its time shift to columns and for the dB
     floor (None: the default `PreprocessConfig` at X's size). The returned model carries
@@ -204,9 +177,7 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         elif cfg.val_split == "deployment":
             if deployments is None or groups is None:
                 raise TrainingError("val_split 'deployment' needs the items' groups and deployment factors")
-            from processing.classifier.holdout import holdout_split
-
-            tr, va, extra["holdout"] = holdout_split(y, groups, deployments, cfg.seed, cfg.val_fraction,
+            tr, va, extra["holdout"] = _holdout_split(y, groups, deployments, cfg.seed, cfg.val_fraction,
                                                      cfg.holdout_factors, cfg.holdout_tail)
         else:
             tr, va = split_indices(y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)

@@ -59,7 +59,7 @@ def _add_preprocess_model_args(p) -> None:
                    help="groups: validate on held-out motion sources (default); deployment: also on held-out tails "
                    "of the simulated deployments (radar distance, height, tilt, beam, room, body, takes), none of "
                    "which reach training, so early stopping picks what extrapolates (see processing.classifier."
-                   "holdout)")
+                   "splits)")
     g.add_argument("--holdout-factors", type=int, default=2, help="--val-split deployment: deployment factors "
                    "with a held-out tail, drawn from the seed (default 2)")
     g.add_argument("--average", choices=("none", "window"), default="none",
@@ -178,7 +178,7 @@ def train_spec(spec: str, args, out: Path, log=print):
         f"loaded in {t_load:.1f} s")
     deployments = None
     if tcfg.val_split == "deployment":
-        from processing.classifier.holdout import deployment_factors
+        from processing.classifier.splits import deployment_factors
 
         deployments = deployment_factors([reader.entries[i] for i in idx])
     try:

@@ -1,4 +1,4 @@
-"""Validation on held-out simulated deployments (`processing.classifier.holdout`)."""
+"""Validation on held-out simulated deployments (`processing.classifier.splits`)."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from processing.classifier.holdout import deployment_factors, entry_deployment, holdout_split
+from processing.classifier.splits import deployment_factors, entry_deployment, holdout_split
 from processing.errors import InputError
 
 

@@ -1,4 +1,5 @@
-"""Validation on simulated deployments held out from training (model selection without real images).
+"""Validation splits: grouped by motion source (`split_indices`), and simulated deployments held out from
+training (`holdout_split`: model selection without real images).
 
 A random split of a deployment-randomised dataset validates on the same distribution the network trains on:
 every room size, radar distance, antenna height, beam and body of the validation items has close neighbours
@@ -28,9 +29,38 @@ import numpy as np
 
 from processing.errors import InputError
 
+
+def split_indices(labels, groups=None, val_fraction: float = 0.2, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(train, validation) index arrays: stratified by label and, if `groups` is given, grouped.
+
+    Grouped splits use scikit-learn's StratifiedGroupKFold with round(1 / val_fraction) folds and take
+    as validation the fold holding most classes (then nearest in size to `val_fraction`), so no group straddles the two sides and class shares stay close to
+    the dataset's. Raises ValueError when there are too few groups or samples to split.
+    """
+    from sklearn.model_selection import StratifiedGroupKFold, train_test_split
+
+    labels = np.asarray(labels)
+    idx = np.arange(labels.size)
+    n_splits = max(2, int(round(1 / val_fraction)))
+    if groups is not None and len(set(groups)) < labels.size:
+        groups = np.asarray([str(g) for g in groups])
+        if np.unique(groups).size < n_splits:
+            raise InputError(f"grouped split needs at least {n_splits} motion sources, got {np.unique(groups).size}"
+                             " (use an ungrouped split)")
+        skf = StratifiedGroupKFold(n_splits=n_splits, shuffle=True, random_state=seed)
+        n_cls = np.unique(labels).size
+        # the fold that holds most classes, then whose size is nearest the requested share
+        tr, va = min(skf.split(idx, labels, groups), key=lambda f: (
+            n_cls - np.unique(labels[f[1]]).size, abs(f[1].size / labels.size - val_fraction)))
+        return np.sort(tr), np.sort(va)
+    _, counts = np.unique(labels, return_counts=True)
+    strat = labels if counts.min() >= 2 else None
+    tr, va = train_test_split(idx, test_size=val_fraction, random_state=seed, stratify=strat)
+    return np.sort(tr), np.sort(va)
+
 # Deployment descriptors (units in the names). Absent values are NaN and never put an item in a tail.
 FACTORS = ("distance_m", "antenna_height_m", "downtilt_deg", "hpbw_el_deg", "hpbw_az_deg", "room_area_m2",
-           "stature_m", "bmi", "body_muscle", "take")
+           "stature_m", "bmi", "age_years", "body_muscle", "take")
 
 
 def _room_area(name) -> float:
@@ -49,7 +79,8 @@ def entry_deployment(entry: dict) -> dict[str, float]:
 
     ``params["deployment"]`` wins where present; otherwise the first link's transmitter gives the horizontal
     distance to the person's spot (the origin) [m] and the antenna height [m], the radar's antenna its downtilt
-    and beamwidths [deg], the room name its floor area [m^2], and the motion its stature [m].
+    and beamwidths [deg], the room name its floor area [m^2], and the motion its stature [m] and, for a shaped
+    body, its BMI [kg/m^2], age [years] and muscle (0..1).
     """
     params = entry.get("params", {}) or {}
     out = {k: math.nan for k in FACTORS if k != "take"}
@@ -67,6 +98,10 @@ def entry_deployment(entry: dict) -> dict[str, float]:
     motion = params.get("motion") or {}
     if motion.get("height") is not None:
         out["stature_m"] = float(motion["height"])
+    body = motion.get("body") or {}
+    for key, name in (("bmi", "bmi"), ("age_years", "age_years"), ("muscle", "body_muscle")):
+        if body.get(key) is not None:
+            out[name] = float(body[key])
     for key, value in (params.get("deployment") or {}).items():
         if key in out and value is not None:
             out[key] = float(value)
@@ -115,8 +150,6 @@ def holdout_split(labels, groups, factors: dict[str, np.ndarray], seed: int = 0,
     Raises:
         InputError: no class left in training or validation, or bad fractions.
     """
-    from processing.classifier.training import split_indices
-
     if not (0 < group_fraction < 1 and 0 < tail < 0.5 and n_factors >= 0):
         raise InputError("holdout_split needs 0 < group_fraction < 1, 0 < tail < 0.5 and n_factors >= 0")
     labels = np.asarray(labels)
@@ -160,4 +193,4 @@ def holdout_split(labels, groups, factors: dict[str, np.ndarray], seed: int = 0,
     return tr, va, desc
 
 
-__all__ = ["FACTORS", "deployment_factors", "entry_deployment", "holdout_split"]
+__all__ = ["FACTORS", "deployment_factors", "entry_deployment", "holdout_split", "split_indices"]
