@@ -234,3 +234,17 @@ def test_back_and_forth_walks_are_centred_on_the_activity_spot(items, legs):
     # the hips' extent is centred within 1 cm (float rounding of the turns); it spans ~2.4 m along the walk
     np.testing.assert_allclose(centre, 0.0, atol=0.01)
     assert np.hypot(*np.ptp(hips, axis=0)) > 2.0
+
+
+def test_every_motion_has_its_own_body_and_the_built_motion_drives_it(items):
+    # body shapes drawn per motion over BodyShapeRanges' documented defaults (sex 50/50, 18-98 years, BMI 17-40)
+    bodies = {it.motion["key"]: it.motion["body"] for it in items}
+    assert len({json.dumps(b, sort_keys=True) for b in bodies.values()}) == len(bodies)
+    bmi = np.array([b["bmi"] for b in bodies.values()])
+    sex = np.array([b["sex"] for b in bodies.values()])
+    assert 17.0 <= bmi.min() < 19.0 and 38.0 < bmi.max() <= 40.0 and 0.35 < sex.mean() < 0.65
+    assert all(18.0 <= b["age_years"] <= 98.0 for b in bodies.values())
+    it = next(i for i in items if i.activity == "sit" and i.motion["kind"] == "procedural")
+    m = build_motion(it.motion)
+    assert m.rig.shape is not None and m.params["body_shape"]["bmi"] == pytest.approx(it.motion["body"]["bmi"])
+    assert m.rig.height == pytest.approx(it.motion["height"])

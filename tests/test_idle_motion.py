@@ -151,3 +151,28 @@ def test_plan_draws_the_idle_factor_per_motion_and_rejects_one_out_of_range(tmp_
     plan["motion"]["idle"]["wrist_deg"] = 5.0  # 50 deg at the top of the range
     with pytest.raises(ValidationError, match="idle_scale 10.0 takes the idle amplitudes out of range"):
         type(load_plan("glasgow")).model_validate(plan)
+
+
+def test_glasgow_idle_amplitudes_are_the_ones_measured_on_real_standing_takes():
+    # the preset's idle values are scripts/idle_from_mocap.py's means over two real standing takes (CMU 77_02 and
+    # the standing part of 82_08), rounded to 0.01 deg; the drawn scale 0.2-2 spans the two takes' ratios to
+    # that mean (0.21-1.78), so either person's stillness is inside the drawn range
+    import importlib.util
+    from pathlib import Path
+
+    from rtchannel.dataset.plan import load_plan
+    from thirdparty import data_path
+
+    for take in ("mocap/cmu/stand/77_02.c3d", "mocap/cmu/walk/82_08.c3d"):
+        data_path(take)
+    spec = importlib.util.spec_from_file_location("idle_from_mocap", Path(__file__).resolve().parents[1] / "scripts"
+                                                  / "idle_from_mocap.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    plan = load_plan("glasgow")
+    assert {f"{g}_deg": v for g, v in script.measured().items()} == {
+        k: v for k, v in plan.motion.idle.model_dump().items() if k.endswith("_deg")}
+    per_take = [script.idle_amplitudes(script.Motion.from_file(data_path(t)))[0] for t, _ in script.TAKES]
+    mean = script.measured()
+    lo, hi = plan.motion.idle_scale
+    assert all(lo <= t[g] / mean[g] <= hi for t in per_take for g in mean)

@@ -75,6 +75,10 @@ def build_motion(m: dict) -> Motion:
             from rtchannel.motion.idle import IdleMotion, add_idle
 
             motion = add_idle(motion, IdleMotion(**m["idle"]), m["idle_seed"])
+        if m.get("body") is not None:  # last: the shaped rig follows every pose the steps above made
+            from rtchannel.body.shape import reshape_motion
+
+            motion = reshape_motion(motion, m["body"])
         return motion
     # keyed by the whole motion dict, not m["key"]: motion ids repeat across plans ("fall-00-0000-m00" of
     # any plan), and a process that ran another plan first reused that plan's motion (different bytes)

@@ -292,6 +292,11 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
                 motion.update(heading_deg=motion["heading_deg"] + 180.0)
             if act in ml.unscaled:
                 motion.update(time_scale=1.0)
+            if ml.body is not None:  # own stream: plans without bodies keep every other draw
+                from rtchannel.body.shape import draw_body_shape
+
+                body_rng = np.random.default_rng(derive_seed(plan.seed, "body:" + motion_id))
+                motion.update(body=draw_body_shape(body_rng, ml.body).model_dump(mode="json"))
             draws_physical = any(x is not None for x in (ph.downtilt_deg, ph.hpbw_el_deg, ph.distance_m, ph.height_m))
             motion_items = []
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):

@@ -13,6 +13,7 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from processing.errors import InputError, one_line
 from rtchannel.body.scatterers import SCATTERER_NAMES
 from rtchannel.dataset.plan_fields import _NAME, Scalar, _Model, _per_activity, _within, for_activity, unique_names  # noqa: F401
+from rtchannel.body.shape import BodyShapeRanges
 from rtchannel.dataset.plan_physical import LinkSet, PhysicalLayer, RoomDraw  # noqa: F401 - re-exported
 from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
@@ -95,6 +96,9 @@ class MotionLayer(_Model):
                                     "(rtchannel.motion.idle); null: none")
     idle_scale: Scalar = Field(1.0, description="factor on the idle amplitudes (or a range, drawn per motion: "
                                "people differ in how still they keep)")
+    body: BodyShapeRanges | None = Field(None, description="body shapes drawn per motion (sex, age, BMI, muscle, "
+                                         "proportions: rtchannel.body.shape.BodyShapeRanges; {} takes its "
+                                         "documented defaults); null: the avatar as it is, scaled to the height")
 
     @field_validator("clip_s")
     @classmethod
