@@ -140,6 +140,34 @@ def test_imported_take_placement_is_checked_as_procedural(tmp_path, capsys, no_s
     assert needle in line
 
 
+def test_frame_rate_of_a_take_is_bounded_as_a_procedural_one(tmp_path, capsys, no_simulation):
+    """--fps 5000 is refused for a procedural motion (ProceduralParams: 10..2000 Hz): so for a motion file,
+    before the take is read (1e300 Hz asked for 1e300 frames, 1e-300 Hz said "a Motion needs two frames")."""
+    names, pos = sm.standing_joints()
+    np.savez(tmp_path / "j.npz", positions=pos, names=np.array(names), fps=60.0, up="z")
+    for fps in ("5000", "1e300", "1e-300"):
+        line = _one_line_exit_2(capsys, ["simulate", "--motion-file", tmp_path / "j.npz", "--activity", "stand",
+                                         "--fps", fps, "--out", tmp_path / "o"])
+        assert "--fps:" in line and "outside 10..2000 Hz" in line
+
+
+def test_chair_is_refused_for_the_points_backend(tmp_path, capsys, no_simulation):
+    line = _one_line_exit_2(capsys, ["simulate", "--activity", "sit", "--chair", "none", "--out", tmp_path / "o"])
+    assert "--chair applies to the mesh backends" in line
+
+
+def test_people_filter_with_a_huge_number_is_one_line(tmp_path, capsys):
+    """Python refuses int() of more than 4300 digits with a plain ValueError (a bug report before)."""
+    from processing.realdata.real_images import RealImageError, parse_people, read_labels_csv
+
+    with pytest.raises(RealImageError, match="bad --people part"):
+        parse_people("P" + "9" * 5000)
+    labels = tmp_path / "labels.csv"
+    labels.write_text("file,activity,subject\na.png,walk,P" + "9" * 5000 + "\n")
+    with pytest.raises(RealImageError, match="is not like P36 or 36"):
+        read_labels_csv(labels)
+
+
 @pytest.mark.parametrize("option", ["--up y", "--skeleton actor.asf"])
 def test_options_of_motion_files_are_refused_for_procedural_activities(tmp_path, capsys, no_simulation, option):
     name, value = option.split()
@@ -200,6 +228,14 @@ def test_malformed_crossval_plan_is_one_line_without_its_content(tmp_path, capsy
                                                                     tmp_path / "cv.csv"])
     plan.write_text("experiments:\n  - {name: a, train: d, test: d}\n  - {name: a, train: e, test: e}\n")
     assert "distinct" in _one_line_exit_2(capsys, ["crossval", "--plan", plan, "--out", tmp_path / "cv.csv"])
+
+
+def test_deeply_nested_option_value_is_one_line(tmp_path, capsys, no_simulation):
+    """--option values are parsed as YAML: a run of '[' was a RecursionError (the plan and radar readers bound
+    their nesting; a single value needs none)."""
+    line = _one_line_exit_2(capsys, ["simulate", "--activity", "fall", "--out", tmp_path / "o", "--option",
+                                     "trajectories=" + "[" * 5000])
+    assert "nested too deeply" in line
 
 
 @pytest.mark.parametrize("address", ["bogus://x", "tcp://host:99999", "tcp://"])

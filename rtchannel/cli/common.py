@@ -173,8 +173,10 @@ def parse_options(items: list[str] | None, per_backend: bool = False) -> dict:
         except yaml.YAMLError as e:
             mark = getattr(e, "problem_mark", None)
             where = f" at character {mark.column + 1}" if mark is not None else ""
-            raise UserError(f"--option {item}: the value is not a YAML scalar{where} "
+            raise UserError(f"--option {item[:80]}: the value is not a YAML scalar{where} "
                             f"({getattr(e, 'problem', None) or 'syntax error'})") from None
+        except RecursionError:  # PyYAML's composer recurses per nesting level: a run of '[' ends here
+            raise UserError(f"--option {key}: the value is not a YAML scalar (nested too deeply)") from None
         (out.setdefault(backend, {}) if per_backend else out)[name] = parsed
     return out
 
