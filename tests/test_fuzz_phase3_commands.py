@@ -183,6 +183,13 @@ def test_plan_placement_is_bounded(tmp_path, capsys, no_simulation, motion, need
     assert needle in _one_line_exit_2(capsys, ["dataset", "--config", plan, "--dry-run"])
 
 
+def test_dry_run_refuses_starts_outside_the_mesh_backends_room(tmp_path, capsys, no_simulation):
+    plan = _plan(tmp_path, [{"procedural": "walk"}], starts=[[0, 0], [5, 0]])
+    line = _one_line_exit_2(capsys, ["dataset", "--config", plan, "--backend", "facets", "--dry-run"])
+    assert "motion.starts [5.0, 0.0] puts the person outside the facets backend's room" in line
+    assert main(["dataset", "--config", plan, "--dry-run"]) == 0  # points: free space
+
+
 @pytest.fixture
 def no_tracing(monkeypatch):
     import rtchannel.pipeline as pipeline

@@ -48,6 +48,7 @@ def check_sources(plan: Plan, where: str) -> SourceCheck:
     from rtchannel.motion.load import load_motion
 
     ml = plan.motion
+    check_starts_in_room(plan, where)
     heights = [h if not isinstance(h, tuple) else h[0] for h in ml.heights]
     height = None if None in heights else heights[0]
     loaded: dict[str, object] = {}
@@ -85,4 +86,24 @@ def check_sources(plan: Plan, where: str) -> SourceCheck:
     return out
 
 
-__all__ = ["SourceCheck", "check_sources"]
+def check_starts_in_room(plan: Plan, where: str) -> None:
+    """`ConfigError` when a mesh backend traces the default room (the plan draws no `physical.room`) and a
+    `starts` entry (value or range) puts the hips on or beyond its walls: every item of it would fail
+    (`rtchannel.scene.rooms.check_inside_room`). Automatic starts are centred on the origin."""
+    from rtchannel.backends import MESH_BACKENDS
+    from rtchannel.scene.rooms import DEFAULT_ROOM
+
+    if plan.backend not in MESH_BACKENDS or plan.physical.room is not None:
+        return
+    x0, x1, y0, y1, _ = DEFAULT_ROOM
+    for st in plan.motion.starts:
+        if st == "auto":
+            continue
+        xs, ys = ((v if isinstance(v, tuple) else (v, v)) for v in st)
+        if not (x0 < min(xs) and max(xs) < x1 and y0 < min(ys) and max(ys) < y1):
+            raise ConfigError(f"{where}: motion.starts {[list(v) if isinstance(v, tuple) else v for v in st]} puts the "
+                              f"person outside the {plan.backend} backend's room (walls at x {x0:g}..{x1:g} m, y "
+                              f"{y0:g}..{y1:g} m); draw rooms around the person (physical.room) or move the starts")
+
+
+__all__ = ["SourceCheck", "check_sources", "check_starts_in_room"]

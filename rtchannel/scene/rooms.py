@@ -100,21 +100,22 @@ def box_bounds(source) -> tuple[float, float, float, float, float] | None:
 
 
 def check_inside_room(motion, scene) -> None:
-    """InputError unless every joint of `motion` (`Motion`, positions [F, J, 3] m) stays strictly inside the
-    walls of the box room `scene` names (`box_bounds`; other scenes are not checked): a person outside the
-    walls, or walking through one, would be traced from behind concrete without a word."""
+    """InputError unless the hips of `motion` (`Motion`, its root joint, positions [F, J, 3] m) stay strictly
+    inside the walls of the box room `scene` names (`box_bounds`; other scenes are not checked) in every frame:
+    a person outside the walls, or walking through one, would be traced from behind concrete without a word.
+    Limbs are not checked: a hand on a wall, or a stride's toes past where the hips turn, is a real pose (and
+    drawn rooms keep 2 m of floor around the person's spot, `plan_physical.RoomDraw`)."""
     from rtchannel.errors import MOVE_THE_PERSON
 
     bounds = box_bounds(scene)
     if bounds is None:
         return
     x0, x1, y0, y1, _ = bounds
-    xy = motion.positions[..., :2]
-    out = ~((xy[..., 0] > x0) & (xy[..., 0] < x1) & (xy[..., 1] > y0) & (xy[..., 1] < y1))  # nan is outside too
+    xy = motion.positions[:, 0, :2]
+    out = ~((xy[:, 0] > x0) & (xy[:, 0] < x1) & (xy[:, 1] > y0) & (xy[:, 1] < y1))  # nan is outside too
     if out.any():
-        k, j = (int(i) for i in np.argwhere(out)[0])
+        k = int(np.argmax(out))
         name = getattr(scene, "source", scene)
         raise InputError(f"scene {name}: the person is outside the room's walls (x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m):"
-                         f" {motion.rig.names[j]} at ({xy[k, j, 0]:.3g}, {xy[k, j, 1]:.3g}) m at t = {k / motion.fps:.2f} s"
-                         + MOVE_THE_PERSON)
+                         f" hips at ({xy[k, 0]:.3g}, {xy[k, 1]:.3g}) m at t = {k / motion.fps:.2f} s" + MOVE_THE_PERSON)
 
