@@ -220,6 +220,5 @@ def licences() -> dict[str, list[str]]:
 
 
 __all__ = ["DataUnavailableError", "Entry", "registry", "entries", "fetch", "fetch_many", "fetch_folder", "resolve_spec",
-           "cache_file",
-           "local_path", "mirror_dir", "cache_dir", "status", "licences", "how_to_get", "DATA_PREFIX",
+           "local_path", "mirror_dir", "cache_dir", "cache_file", "status", "licences", "how_to_get", "DATA_PREFIX",
            "MIRROR_ENV", "CACHE_ENV"]

@@ -47,7 +47,8 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     Raises:
         MotionImportError: unreadable, truncated or corrupted file (message names file and line/frame).
         ConfigError: an argument out of range (fps outside 10..2000 Hz or too many resampled frames,
-            unknown units or up axis, max_gap_s outside 0..10 s).
+            unknown units or up axis, max_gap_s outside 0..10 s) or for another format (a skeleton for
+            anything but AMC, units for OpenCap JSON, gap options for anything but C3D).
     """
     p = Path(path)
     if fps is not None:
