@@ -123,6 +123,20 @@ def _entry(relpath: str) -> Entry:
         raise InputError(f"{relpath}: not a registered data file (rtchannel data list shows them)") from None
 
 
+def cache_file(relpath: str) -> Path:
+    """Where the cache keeps the registered file `relpath`. InputError if a folder between the cache root and
+    the file is a symbolic link: the cache never writes through a link (one planted there would send a
+    download or a copy outside it). A link in the file's own place is replaced, never written through."""
+    root = cache_dir()
+    folder = root
+    for part in Path(relpath).parts[:-1]:
+        folder = folder / part
+        if folder.is_symlink():
+            raise InputError(f"data cache: {folder} is a symbolic link; the cache never writes through a link "
+                             "(remove it, or set RTCHANNEL_DATA_CACHE to another folder)")
+    return root / relpath
+
+
 def how_to_get(relpath: str) -> str:
     """The one-line advice shown when a file is missing."""
     return (f"third-party data {relpath} is not available: run 'rtchannel data fetch {relpath}' (needs "
@@ -143,7 +157,7 @@ def fetch(relpath: str, *, download: bool = True, progress: bool = False) -> Pat
         raise DataUnavailableError(how_to_get(relpath))
     import pooch
 
-    target = cache_dir() / entry.path
+    target = cache_file(entry.path)  # pooch renames its download over the target: a link there is replaced
     try:
         got = pooch.retrieve(entry.url, known_hash=f"sha256:{entry.sha256}", fname=target.name,
                              path=target.parent, progressbar=progress)
@@ -170,11 +184,13 @@ def fetch_folder(prefix: str, *, download: bool = True, progress: bool = False) 
     folders = {p.parent for p in paths}
     if len(folders) == 1:
         return folders.pop()
+    from processing.atomic import atomic_path
+
     for e, p in zip(entries(prefix.rstrip("/")), paths):
-        target = cache_dir() / e.path
-        if p != target:
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(p, target)
+        target = cache_file(e.path)
+        if p != target:  # copied beside and renamed over the target: a link planted there is replaced
+            with atomic_path(target) as tmp:
+                shutil.copyfile(p, tmp)
     return cache_dir() / prefix.rstrip("/")
 
 
@@ -204,5 +220,5 @@ def licences() -> dict[str, list[str]]:
 
 
 __all__ = ["DataUnavailableError", "Entry", "registry", "entries", "fetch", "fetch_many", "fetch_folder", "resolve_spec",
-           "local_path", "mirror_dir", "cache_dir", "status", "licences", "how_to_get", "DATA_PREFIX",
+           "local_path", "mirror_dir", "cache_dir", "cache_file", "status", "licences", "how_to_get", "DATA_PREFIX",
            "MIRROR_ENV", "CACHE_ENV"]

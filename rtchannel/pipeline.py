@@ -91,7 +91,12 @@ class SimulationResult:
 
 
 def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", **options) -> dict[str, PathSet]:
-    """Path sets per link from the named backend."""
+    """Path sets per link from the named backend. InputError first when a mesh backend's box room (the default
+    "room" or ``room:...``) does not hold the person (`rtchannel.scene.rooms.check_inside_room`)."""
+    if backend in MESH_BACKENDS:
+        from rtchannel.scene.rooms import check_inside_room
+
+        check_inside_room(motion, options.get("scene", "room"))
     return backend_function(backend)(motion, radar, **options)
 
 

@@ -81,7 +81,7 @@ def test_malformed_asf_and_amc_are_one_line_errors(tmp_path):
         read_asf(tmp_path / "s.asf")
     (tmp_path / "ok.asf").write_text(ASF)
     (tmp_path / "m.amc").write_text(AMC.replace("lfemur 90 0 0", "lfemur 90 0"))
-    with pytest.raises(MotionImportError, match=r"m\.amc, frame 1: bone 'lfemur' has 2 values"):
+    with pytest.raises(MotionImportError, match=r"m\.amc, line 9, frame 1: bone 'lfemur' has 2 values"):
         read_amc(tmp_path / "m.amc", read_asf(tmp_path / "ok.asf"))
     with pytest.raises(Exception, match="needs its ASF skeleton"):
         load_motion(tmp_path / "m.amc")

@@ -39,8 +39,8 @@ def test_vote_is_the_members_mean_probability():
     # different seeds really differ, so the test above could fail
     assert np.abs(members[0].predict_proba(x) - members[1].predict_proba(x)).max() > 1e-3
     assert [m["seed"] for m in ens.meta["members"]] == [0, 1, 2] and ens.meta["dsp"] == {"a": 1}
-    # two copies of one network vote exactly as that network
-    same = ensemble([members[0], members[0]])
+    # two copies of one network vote exactly as that network (refused unless asked for: see the next test)
+    same = ensemble([members[0], members[0]], distinct=False)
     np.testing.assert_allclose(same.predict_proba(x), members[0].predict_proba(x), rtol=1e-5, atol=1e-7)
 
 

@@ -188,13 +188,14 @@ def test_info_reports_unreadable_index_lines_and_what_the_shards_hold(tmp_path, 
     shutil.copytree(ref, ds)
     n = len(DatasetReader(ds))
     (ds / "index.jsonl").write_text("garbage line\n")  # a torn last line reads as no entries
-    assert main(["dataset", "--info", str(ds)]) == 0
-    out = capsys.readouterr().out
+    assert main(["dataset", "--info", str(ds)]) == 2  # reported, and a script sees the damage (issue 39)
+    out, err = capsys.readouterr()
     assert "index: 1 unreadable line (first: line 1); 0 readable entries" in out
+    assert len(err.strip().splitlines()) == 1 and "is damaged" in err and "index.jsonl: 1 unreadable line" in err
     assert f"shards hold {n} items" in out and f"{n} items in the shards are not in the index" in out
     lines = (ref / "index.jsonl").read_text().splitlines()
     lines[1] = "{not json"
     (ds / "index.jsonl").write_text("\n".join(lines) + "\n")
-    assert main(["dataset", "--info", str(ds)]) == 0
+    assert main(["dataset", "--info", str(ds)]) == 2
     out = capsys.readouterr().out
     assert "cannot be read as a whole" in out and "first: line 2" in out and "1 item in the shards is not" in out

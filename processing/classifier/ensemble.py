@@ -42,15 +42,29 @@ def members_of(model: nn.Module) -> list[nn.Module]:
     return list(model.members) if isinstance(model, SoftVote) else [model]
 
 
-def ensemble(classifiers: list[Classifier], names: list[str] | None = None) -> Classifier:
+def weights_digest(model: nn.Module) -> str:
+    """sha256 of a network's parameters and buffers (names, shapes, dtypes and bytes): equal for the same weights."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for name, t in sorted(model.state_dict().items()):
+        t = t.detach().cpu().contiguous()
+        h.update(f"{name}:{tuple(t.shape)}:{t.dtype}".encode())
+        h.update(t.numpy().tobytes() if t.dtype != torch.bfloat16 else t.float().numpy().tobytes())
+    return h.hexdigest()
+
+
+def ensemble(classifiers: list[Classifier], names: list[str] | None = None, *, distinct: bool = True) -> Classifier:
     """One classifier voting with the mean class probability of `classifiers` (ensembles are flattened).
 
     They must share the network configuration, the preprocessing, the classes (in order) and the links; the
     ensemble keeps each member's training metadata (seed, dataset, validation accuracy) under meta["members"].
+    With `distinct` (default), two members with equal weights (`weights_digest`; e.g. an ensemble given
+    together with one of its own members) are refused: one network would count twice in the vote.
 
     Raises:
-        InputError: fewer than 2 or more than `MAX_MEMBERS` networks, or members that differ in one of the
-            shared fields (named, with the member).
+        InputError: fewer than 2 or more than `MAX_MEMBERS` networks, members that differ in one of the
+            shared fields (named, with the member), or (`distinct`) a network given twice.
     """
     names = [f"member {i}" for i in range(len(classifiers))] if names is None else list(names)
     first = classifiers[0] if classifiers else None
@@ -66,6 +80,12 @@ def ensemble(classifiers: list[Classifier], names: list[str] | None = None) -> C
         own = clf.meta.get("members") or [{key: clf.meta.get(key) for key in ("train_spec", "val_accuracy")}
                                           | {"seed": (clf.meta.get("train_config") or {}).get("seed")}]
         info += [{"source": name, **m} for m in own]
+    seen: dict[str, int] = {}
+    for k, net in enumerate(nets if distinct else []):  # an ensemble given with one of its members
+        first_k = seen.setdefault(weights_digest(net), k)
+        if first_k != k:
+            raise InputError(f"{info[k]['source']} holds the same network as {info[first_k]['source']} (equal "
+                             "weights): a member would count twice in the vote")
     model = SoftVote(nets)
     model.eval()
     dsps = [clf.meta.get("dsp") for clf in classifiers]
@@ -75,4 +95,4 @@ def ensemble(classifiers: list[Classifier], names: list[str] | None = None) -> C
                       links=list(first.links), meta=meta)
 
 
-__all__ = ["MAX_MEMBERS", "SoftVote", "ensemble", "members_of"]
+__all__ = ["MAX_MEMBERS", "SoftVote", "ensemble", "members_of", "weights_digest"]

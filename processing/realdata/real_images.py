@@ -30,7 +30,7 @@ from processing.errors import InputError
 NOISE_COLUMN_DB = -30.0  # column power below this (re the strongest column) is noise only; see above
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 MAX_IMAGES = 100_000  # a folder walk must not run away on a wrong path (the Glasgow set has 360)
-_RANGE = re.compile(r"^P?(\d+)(?:\s*-\s*P?(\d+))?$", re.IGNORECASE)
+_RANGE = re.compile(r"^P?(\d{1,9})(?:\s*-\s*P?(\d{1,9}))?$", re.IGNORECASE)  # int() of 4301+ digits raises
 
 
 class RealImageError(InputError):
@@ -91,7 +91,7 @@ def read_labels_csv(path: str | Path) -> dict[str, tuple[str, int | None]]:
             (r.get("subject") or "").strip()
         if not name or not act:
             raise RealImageError(f"{path}:{k}: empty file or activity")
-        m = re.fullmatch(r"P?(\d+)", subj, re.IGNORECASE) if subj else None
+        m = re.fullmatch(r"P?(\d{1,9})", subj, re.IGNORECASE) if subj else None  # int() of 4301+ digits raises
         if subj and m is None:
             raise RealImageError(f"{path}:{k}: subject {subj!r} is not like P36 or 36")
         out[Path(name).name] = (act, int(m.group(1)) if m else None)

@@ -51,6 +51,11 @@ MAX_OFF_MAP_FRACTION = 0.01
 RGB = tuple[int, int, int]
 
 
+# spectrogram images are < 1 MP (Glasgow: 560 x 420); 2^25 (32 MP, 100 MB as RGB) still takes an 8K screenshot,
+# and bounds what a few hundred bytes of compressed PNG claiming 40000 x 40000 may ask to allocate
+MAX_IMAGE_PIXELS = 1 << 25
+
+
 class SpectrogramImageError(InputError):
     """A spectrogram image (or its file name, or layout) cannot be read; the message names the file."""
 
@@ -226,15 +231,26 @@ def load_rgb(source, name: str | None = None) -> tuple[np.ndarray, str]:
         if source.ndim != 3 or source.shape[2] not in (3, 4) or source.dtype != np.uint8:
             raise SpectrogramImageError(f"{name}: expected a uint8 [H, W, 3] array, got {source.dtype} {source.shape}")
         return source[..., :3], name
+    import warnings
+
     from PIL import Image, UnidentifiedImageError
 
     name = name or str(source)
     try:
-        with Image.open(source) as im:
-            return np.asarray(im.convert("RGB")), name
+        with warnings.catch_warnings():  # PIL's own bomb warning: the size is refused below, in one line
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(source) as im:  # reads the header only: the size before any pixel is decoded
+                w, h = im.size
+                if w * h <= MAX_IMAGE_PIXELS:
+                    return np.asarray(im.convert("RGB")), name
+    except Image.DecompressionBombError:  # PIL refuses more than twice its own limit in `open`
+        w = h = None
     except (OSError, UnidentifiedImageError, ValueError) as e:
         why = " ".join(str(e).split()) or type(e).__name__
         raise SpectrogramImageError(f"{name}: not a readable image ({why})") from None
+    size = f"{w} x {h} pixels" if w is not None else "its size"
+    raise SpectrogramImageError(f"{name}: {size} exceeds the {MAX_IMAGE_PIXELS} pixels an image may have "
+                                "(a decompression bomb?)")
 
 
 @lru_cache(maxsize=16)

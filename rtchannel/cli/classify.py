@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rtchannel.cli.common import check_output, positive_int, seed_int
+from rtchannel.cli.common import check_output, output_file, positive_int, seed_int
 
 # the dataset query language lives in the library (usable from the API); re-exported for the commands
 from processing.io.dataset_query import open_spec, parse_spec, select  # noqa: E402,F401
@@ -207,8 +207,7 @@ def train_spec(spec: str, args, out: Path, log=print):
 
 
 def cmd_train(args) -> int:
-    if args.out.suffix == "":
-        args.out = args.out.with_suffix(".pt")
+    args.out = output_file(args.out, ".pt")
     check_output(args.out, "file")
     train_spec(args.data, args, args.out)
     stem = args.out.with_suffix("")
@@ -331,12 +330,14 @@ def cmd_evaluate(args) -> int:
 
 def _crossval_plan(args) -> list[dict]:
     if args.plan is not None:
-        import yaml
+        import re
+
+        from rtchannel.safe_yaml import read_yaml_mapping
 
         if not args.plan.is_file():
             raise _user_error()(f"crossval plan not found: {args.plan}")
-        doc = yaml.safe_load(args.plan.read_text()) or {}
-        exps = doc.get("experiments") if isinstance(doc, dict) else None
+        doc = read_yaml_mapping(args.plan, "crossval plan")  # bounded; errors name the line, never quote it
+        exps = doc.get("experiments")
         if not isinstance(exps, list) or not exps:
             raise _user_error()(f"{args.plan}: needs a list 'experiments' of {{name, train, test}}")
         plan = []
@@ -344,8 +345,16 @@ def _crossval_plan(args) -> list[dict]:
             if not isinstance(e, dict) or "train" not in e or "test" not in e:
                 raise _user_error()(f"{args.plan}: experiment {k + 1} needs 'train' and 'test' specs")
             tests = e["test"] if isinstance(e["test"], list) else [e["test"]]
-            plan.append({"name": str(e.get("name", f"exp{k + 1}")), "train": str(e["train"]),
-                         "test": [str(t) for t in tests]})
+            name = e.get("name", f"exp{k + 1}")
+            # the name becomes part of a model file's name beside --out: no path, no duplicate
+            if not (isinstance(name, (str, int)) and re.fullmatch(r"[A-Za-z0-9_\-]{1,64}", str(name))):
+                raise _user_error()(f"{args.plan}: experiment {k + 1}: name must be 1-64 letters, digits, _ or -")
+            if not all(isinstance(x, str) and x for x in [e["train"], *tests]):
+                raise _user_error()(f"{args.plan}: experiment {k + 1}: train and test are dataset specs (text)")
+            plan.append({"name": str(name), "train": e["train"], "test": list(tests)})
+        names = [p["name"] for p in plan]
+        if len(set(names)) != len(names):
+            raise _user_error()(f"{args.plan}: experiment names must be distinct (each names a model file)")
         return plan
     if not args.train or not args.test:
         raise _user_error()("give --plan YAML, or --train SPEC and --test SPEC (repeatable)")
@@ -356,7 +365,7 @@ def cmd_crossval(args) -> int:
     from processing.classifier.training import dataset_arrays
 
     plan = _crossval_plan(args)
-    out = args.out if args.out.suffix else args.out.with_suffix(".csv")
+    out = output_file(args.out, ".csv")
     check_output(out, "file")
     out.parent.mkdir(parents=True, exist_ok=True)
     rows = []

@@ -142,6 +142,15 @@ def check_output(path: Path | None, kind: str = "dir") -> None:
         raise UserError(f"--out {path}: cannot write there ({e.strerror or e})") from None
 
 
+def output_file(path: Path, suffix: str) -> Path:
+    """The file an ``--out FILE`` names, `suffix` (".pt", ".csv") added when it has none; UserError for an
+    existing folder (which would otherwise give FOLDER.pt beside it, outside what --out names)."""
+    path = Path(path)
+    if path.is_dir():
+        raise UserError(f"--out {path}: is a folder, expected a file name ({suffix})")
+    return path if path.suffix else path.with_suffix(suffix)
+
+
 def split_list(values: list[str] | None) -> list[str]:
     """Items given space- or comma-separated (``--backends points,facets`` = ``--backends points facets``)."""
     return [v for item in values or [] for v in item.split(",") if v]
@@ -164,8 +173,10 @@ def parse_options(items: list[str] | None, per_backend: bool = False) -> dict:
         except yaml.YAMLError as e:
             mark = getattr(e, "problem_mark", None)
             where = f" at character {mark.column + 1}" if mark is not None else ""
-            raise UserError(f"--option {item}: the value is not a YAML scalar{where} "
+            raise UserError(f"--option {item[:80]}: the value is not a YAML scalar{where} "
                             f"({getattr(e, 'problem', None) or 'syntax error'})") from None
+        except RecursionError:  # PyYAML's composer recurses per nesting level: a run of '[' ends here
+            raise UserError(f"--option {key}: the value is not a YAML scalar (nested too deeply)") from None
         (out.setdefault(backend, {}) if per_backend else out)[name] = parsed
     return out
 
@@ -227,6 +238,10 @@ def build_motion(args):
     if args.motion_file is not None:
         if getattr(args, "fall_direction", None) is not None:
             raise UserError("--fall-direction applies to a procedural fall, not to --motion-file")
+        given = [f"--{n}" for n in ("speed", "duration", "distance") if getattr(args, n, None) is not None]
+        if given:  # a take has its own pace and length (--trim cuts it)
+            raise UserError(f"{given[0]} applies to a procedural activity, not to --motion-file (use --trim to cut "
+                            "a take)")
         if not args.motion_file.is_file():
             raise UserError(f"motion file not found: {args.motion_file}")
         skeleton = getattr(args, "skeleton", None)
@@ -235,11 +250,17 @@ def build_motion(args):
         extra = {} if skeleton is None else {"skeleton": skeleton}
         if getattr(args, "up", None) is not None:
             extra["up"] = args.up
+        from rtchannel.motion.source import check_fps
+
+        check_fps(args.fps, "--fps")  # the bounds of procedural motions, before the take is read
         motion = Motion.from_file(args.motion_file, height=args.height, activity=args.activity, **extra)
         motion = place_take(motion, start=args.start, heading_deg=heading, trim=trim)
         return motion if args.fps == motion.fps else motion.resampled(args.fps)
     if trim is not None:
         raise UserError("--trim applies to --motion-file; a procedural activity takes --duration")
+    for name in ("up", "skeleton"):
+        if getattr(args, name, None) is not None:
+            raise UserError(f"--{name} applies to --motion-file, not to a procedural activity")
     params = {k: v for k, v in (("speed", args.speed), ("duration", args.duration),
                                 ("distance", args.distance)) if v is not None}
     direction = getattr(args, "fall_direction", None)

@@ -38,6 +38,10 @@ def cmd_dataset(args) -> int:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     if args.retries < 0:
         raise UserError(f"--retries must be >= 0, got {args.retries}")
+    if args.scheduler is not None:  # before any work: a typo'd address is one line, not a bug report
+        from rtchannel.dataset.runner import check_scheduler_address
+
+        check_scheduler_address(args.scheduler)
     from rtchannel.dataset.plan import expand, load_plan, resolve_config
     from rtchannel.errors import InputError
 
@@ -56,9 +60,16 @@ def cmd_dataset(args) -> int:
     if args.dry_run:
         from collections import Counter
 
+        from rtchannel.dataset.plan_check import check_sources
+
+        checked = check_sources(plan, f"plan {args.config}")  # each motion file loads; options fit it
         c = Counter(it.activity for it in items)
         print(f"{plan.name}: {len(items)} items ({', '.join(f'{k}={v}' for k, v in sorted(c.items()))}), "
               f"{len({it.group for it in items})} motion groups, backend {plan.backend}")
+        if checked.loaded or checked.not_local:
+            print(f"motion files: {checked.loaded} loaded and checked" + (
+                f"; {checked.not_local} registered files not local, not checked (rtchannel data fetch gets them)"
+                if checked.not_local else ""))
         return 0
     from rtchannel.dataset.runner import PlanMismatchError, run_plan
 
@@ -92,10 +103,12 @@ def _info(root) -> int:
     if not root.is_dir():
         raise UserError(f"dataset folder not found: {root}")
     health = index_health(root)
+    damage = []  # after the report, one error line and exit status 2: scripts see a damaged dataset
     try:
         print(DatasetReader(root).summary())
     except DatasetFormatError as e:
         print(f"{root}: the index cannot be read as a whole ({e})")
+        damage.append(str(e))
     except FileNotFoundError as e:
         raise UserError(str(e)) from None
     bad = health["bad_lines"]
@@ -108,4 +121,11 @@ def _info(root) -> int:
         n = health["missing_from_index"]
         print(f"  {n} item{'s' if n > 1 else ''} in the shards {'are' if n > 1 else 'is'} not in the index: run the same "
               "`rtchannel dataset` command again to resume, which rebuilds the index from the shards")
+    if bad and not damage:
+        damage.append(f"{root / 'index.jsonl'}: {len(bad)} unreadable line{'s' if len(bad) > 1 else ''} (first: line "
+                      f"{bad[0]}; a run killed while writing leaves its last line torn: run it again to resume)")
+    if health["bad_shards"]:
+        damage.append(f"{len(health['bad_shards'])} unreadable shards ({', '.join(health['bad_shards'][:3])})")
+    if damage:
+        raise UserError(f"the dataset in {root} is damaged: {'; '.join(damage)}")
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rtchannel.cli.common import check_output
+from rtchannel.cli.common import check_output, output_file
 
 
 def cmd_ensemble(args) -> int:
@@ -13,8 +13,7 @@ def cmd_ensemble(args) -> int:
     from processing.errors import InputError
     from rtchannel.cli.common import UserError
 
-    if args.out.suffix == "":
-        args.out = args.out.with_suffix(".pt")
+    args.out = output_file(args.out, ".pt")
     check_output(args.out, "file")
     if len(set(map(Path.resolve, args.models))) != len(args.models):
         raise UserError("--models lists the same checkpoint twice (a member would count double)")

@@ -1,6 +1,7 @@
 """`rtchannel simulate`: one activity through one backend; writes signature.h5 and PNG figures."""
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from rtchannel.cli.common import (UserError, accuracy_kwargs, add_accuracy_args, add_motion_args, add_radar_args,
@@ -28,9 +29,17 @@ def add_simulate(sub) -> None:
     p.set_defaults(func=cmd_simulate)
 
 
+class StoreGiven(argparse.Action):
+    """argparse's store, noting ``<dest>_given`` (a default cannot say whether the user gave the option)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):  # noqa: D102 - argparse hook
+        setattr(namespace, self.dest, values)
+        setattr(namespace, f"{self.dest}_given", True)
+
+
 def add_chair_arg(p) -> None:
     """--chair auto|none (read by `scene_with_chair`)."""
-    p.add_argument("--chair", choices=("auto", "none"), default="auto",
+    p.add_argument("--chair", choices=("auto", "none"), default="auto", action=StoreGiven,
                    help="mesh backends and render: auto (default) puts a wooden chair under the person for sit "
                    "and stand, placed from the motion (seat height, facing, backrest behind); none: no chair")
 
@@ -54,8 +63,9 @@ def backend_options(args) -> dict:
     if args.backend not in BACKENDS:
         raise UserError(f"unknown backend '{args.backend}'; choose one of {', '.join(BACKENDS)}")
     opts = parse_options(args.option)
-    for name in ("scene", "lod"):
-        if getattr(args, name) is not None and args.backend == "points":
+    for name in ("scene", "lod", "chair"):
+        given = getattr(args, f"{name}_given", False) if name == "chair" else getattr(args, name) is not None
+        if given and args.backend == "points":
             raise UserError(f"--{name} applies to the mesh backends (facets, sionna), not points")
     if args.lod is not None:
         opts["lod"] = args.lod

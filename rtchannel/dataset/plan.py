@@ -61,6 +61,11 @@ def load_plan(spec: str | Path, **overrides) -> Plan:
         if s.files is not None and not s.files.startswith(DATA_PREFIX):
             f = Path(s.files).expanduser()
             s = s.model_copy(update={"files": str((f if f.is_absolute() else path.parent / f).resolve())})
+        skel = s.options.get("skeleton")
+        if isinstance(skel, str) and not skel.startswith(DATA_PREFIX):  # relative to the plan, like files
+            k = Path(skel).expanduser()
+            s = s.model_copy(update={"options": {**s.options, "skeleton": str((k if k.is_absolute() else
+                                                                              path.parent / k).resolve())}})
         sources.append(s)
     plan = plan.model_copy(update={"motion": plan.motion.model_copy(update={"sources": sources})})
     if plan.calibration is not None:  # relative to the plan file, like motion files
@@ -227,6 +232,9 @@ def _motion_variants(plan: Plan, fetch: bool = True) -> list[tuple[str, str, str
                     raise InputError(f"motion file {f}: folder name {act!r} is not an activity "
                                      f"({', '.join(ACTIVITIES)})")
                 options = dict(src.options)
+                if (f.suffix.lower() == ".amc") != ("skeleton" in options):
+                    raise ConfigError(f"motion.sources.{si}: {f.name}: an .amc motion needs its ASF skeleton "
+                                      "(options: {skeleton: FILE or FOLDER}) and only an .amc motion takes one")
                 if "skeleton" in options:
                     options["skeleton"] = str(skeleton_for(f, options["skeleton"], fetch))
                 base = {"kind": "file", "activity": act, "path": str(f), "options": options}

@@ -15,9 +15,13 @@ from rtchannel.body.scatterers import SCATTERER_NAMES
 from rtchannel.dataset.plan_fields import _NAME, Scalar, _Model, _per_activity, _within, for_activity, unique_names  # noqa: F401
 from rtchannel.body.shape import BodyShapeRanges
 from rtchannel.dataset.plan_physical import LinkSet, PhysicalLayer, RoomDraw  # noqa: F401 - re-exported
+from rtchannel.motion.compose import MAX_HEADING_DEG, MAX_START_M
 from rtchannel.motion.idle import IdleMotion
 from rtchannel.motion.procedural import ACTIVITIES, ProceduralParams
 
+# `load_motion` options a files source may give, with their types
+_FILE_OPTIONS = {"units": (str, int, float), "up": (str,), "align": (bool,), "floor": (bool,),
+                 "max_gap_s": (int, float), "on_long_gap": (str,), "skeleton": (str,)}
 # fields the motion layer sets itself (height, heading, start, mirror, seed) or that must be common (fps)
 _RESERVED_PROC = {"height", "heading_deg", "start", "seed", "fps"}
 
@@ -43,6 +47,9 @@ class Source(_Model):
     def _one_kind(self) -> "Source":
         if (self.procedural is None) == (self.files is None):
             raise InputError("give exactly one of 'procedural' (an activity) or 'files' (a path)")
+        if self.trim is not None and not (0 <= self.trim[0] and (self.trim[1] is None or self.trim[0] < self.trim[1])):
+            raise InputError(f"trim {list(self.trim)}: need 0 <= START < END seconds (END null: to the end), as "
+                             "--trim")
         if self.procedural is not None:
             if self.trim is not None:
                 raise InputError("trim applies to motion files; procedural motions take params (duration, pads)")
@@ -55,10 +62,14 @@ class Source(_Model):
                 raise InputError("files: 'activity' is required (an activity or 'from_folder')")
             if self.activity != "from_folder" and self.activity not in ACTIVITIES:
                 raise InputError(f"activity must be one of {', '.join(ACTIVITIES)} or 'from_folder'")
-            bad = sorted(set(self.options) - {"units", "up", "align", "floor", "max_gap_s", "on_long_gap",
-                                              "skeleton"})
+            bad = sorted(set(self.options) - set(_FILE_OPTIONS))
             if bad:
                 raise InputError(f"options: {bad[0]!r} is not a load_motion option")
+            for key, value in self.options.items():
+                types = _FILE_OPTIONS[key]
+                if not isinstance(value, types) or (isinstance(value, bool) and bool not in types):
+                    raise InputError(f"options.{key}: expected {' or '.join(t.__name__ for t in types)}, got "
+                                     f"{type(value).__name__}")
         return self
 
 
@@ -154,6 +165,21 @@ class MotionLayer(_Model):
         for x in v:
             if isinstance(x, tuple) and not x[0] <= x[1]:
                 raise InputError(f"range {list(x)} must be [low, high] with low <= high")
+        return v
+
+    @field_validator("headings_deg")
+    @classmethod
+    def _headings(cls, v):
+        for x in v:
+            _within(x, -MAX_HEADING_DEG, MAX_HEADING_DEG, "heading", " deg")
+        return v
+
+    @field_validator("starts")
+    @classmethod
+    def _starts(cls, v):
+        for st in v:
+            for x in (() if st == "auto" else st):
+                _within(x, -MAX_START_M, MAX_START_M, "start coordinate", " m")
         return v
 
     @field_validator("heights")

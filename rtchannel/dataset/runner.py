@@ -31,6 +31,7 @@ from processing.atomic import write_text_atomic
 from processing.io.dataset_store import (ERRORS, PLAN, SHARDS, append_jsonl, check_record, read_shard_entries,
                                       remove_orphans, scan_shards, write_index, write_shard)
 from processing.errors import DatasetFormatError, InputError
+from rtchannel.errors import ConfigError
 from rtchannel.dataset.plan import Plan, WorkItem, expand
 
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -194,6 +195,24 @@ def _prepare(plan: Plan, out: Path, verify: bool = True) -> tuple[list[dict], st
     return entries, digest, bad, seconds
 
 
+def check_scheduler_address(address: str) -> None:
+    """`ConfigError` (one line) unless `address` is one Dask can connect to: a scheme it knows (tcp, tls, ws,
+    wss, inproc, ucx; none means tcp) and, for the network schemes, a host and a port 1..65535."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, loc = parse_address(address)
+        get_backend(scheme)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            host, port = parse_host_port(loc, 8786)
+            if not host or not 0 < int(port) < 65536:
+                raise ValueError("needs HOST:PORT")
+    except (ValueError, TypeError) as e:
+        raise ConfigError(f"--scheduler {address[:80]!r}: not a Dask scheduler address ({str(e)[:120]}); e.g. "
+                          "tcp://HOST:8786") from None
+
+
 def run_plan(plan: Plan, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
              retries: int = 2, progress: bool = True, client=None, item_filter=None,
              verify: bool = True) -> RunSummary:
@@ -289,6 +308,7 @@ def _run_dask(batches, out, digest, retries, backend, n_workers, scheduler, clie
     own_client = client is None
     if client is None:
         if scheduler:
+            check_scheduler_address(scheduler)
             client = Client(scheduler)
         else:
             import dask

@@ -18,18 +18,22 @@ bones' starts, as BVH joints are, and the same joint map retargets them (`rigs.J
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from rtchannel.motion.bvh import MAX_OFFSET
 from rtchannel.motion.errors import MotionImportError
-from rtchannel.motion.source import SourceMotion, check_extent, up_rotation
+from rtchannel.motion.source import MAX_ANGLE_DEG, MAX_SOURCE_FRAMES, SourceMotion, check_extent, up_rotation
 
 MAX_ASF_BYTES = 1 << 20  # a skeleton is a few kB
 MAX_AMC_BYTES = 1 << 30
 INCH_M = 0.0254
+ROOT_CHANNELS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+DOF_CHANNELS = ("rx", "ry", "rz")
 # ASF bone -> cgspeed BVH joint (the CMU conversion everyone uses)
 BVH_NAMES = {
     "root": "Hips", "lowerback": "LowerBack", "upperback": "Spine", "thorax": "Spine1", "lowerneck": "Neck",
@@ -56,7 +60,8 @@ class Bone:
 @dataclass
 class Skeleton:
     """An ASF skeleton: metres per unit, whether angles are degrees, the root's channel order and axis
-    rotation, bones by name and each bone's parent (the root's children have parent "root")."""
+    rotation, bones by name, each bone's parent (the root's children have parent "root") and the file's name
+    (for messages)."""
 
     metres_per_unit: float
     degrees: bool
@@ -64,6 +69,7 @@ class Skeleton:
     root_c: np.ndarray
     bones: dict[str, Bone]
     parent: dict[str, str]
+    name: str = "the ASF"
 
 
 def _euler(order: str, angles, degrees: bool) -> np.ndarray:
@@ -83,8 +89,41 @@ def _text(path: Path, limit: int) -> list[str]:
     return data.decode("latin-1").splitlines()
 
 
+def _axis_order(word: str) -> str:
+    """An ASF axis order (a permutation of XYZ, e.g. "ZYX"); ValueError otherwise."""
+    order = word.upper()
+    if sorted(order) != ["X", "Y", "Z"]:
+        raise ValueError(f"axis order {word[:12]!r} is not a permutation of XYZ")
+    return order
+
+
+def _numbers(words: list[str], n: int, what: str, limit: float) -> list[float]:
+    """`n` finite numbers within +-`limit` from `words`; ValueError naming `what` otherwise."""
+    if len(words) < n:
+        raise ValueError(f"{what} needs {n} numbers")
+    values = [float(w) for w in words[:n]]
+    if not all(math.isfinite(v) and abs(v) <= limit for v in values):
+        raise ValueError(f"{what} is not finite or beyond +-{limit:g}")
+    return values
+
+
+def _dof(words: list[str]) -> list[str]:
+    """The rotation channels of a bone's ``dof`` line; ValueError for anything else (the forward kinematics
+    has no translation or length channels, which no CMU/HDM05 skeleton uses)."""
+    dof = [w.lower() for w in words]
+    bad = [d for d in dof if d not in DOF_CHANNELS]
+    if bad:
+        what = "translation/length channels are not supported" if bad[0] in ("tx", "ty", "tz", "l") else \
+            f"channels are {', '.join(DOF_CHANNELS)}"
+        raise ValueError(f"dof {bad[0][:12]!r}: {what}")
+    if len(set(dof)) != len(dof):
+        raise ValueError("a dof channel is listed twice")
+    return dof
+
+
 def read_asf(path) -> Skeleton:
-    """Parse an ASF skeleton; MotionImportError (file and line) for anything malformed."""
+    """Parse an ASF skeleton; MotionImportError (file and line) for anything malformed, out of range
+    (`validation.md`) or that the forward kinematics cannot use."""
     path = Path(path)
     lines = _text(path, MAX_ASF_BYTES)
     section, length_unit, degrees = "", 1.0, True
@@ -97,6 +136,7 @@ def read_asf(path) -> Skeleton:
         if not line:
             continue
         words = line.split()
+        max_angle = MAX_ANGLE_DEG if degrees else math.radians(MAX_ANGLE_DEG)
         try:
             if words[0].startswith(":"):
                 section = words[0][1:].lower()
@@ -105,14 +145,23 @@ def read_asf(path) -> Skeleton:
                 if words[0] == "length":
                     length_unit = float(words[1])
                 elif words[0] == "angle":
-                    degrees = words[1].lower().startswith("deg")
+                    unit = words[1].lower()
+                    if not unit.startswith(("deg", "rad")):
+                        raise ValueError(f"angle unit {words[1][:12]!r} is not deg or rad")
+                    degrees = unit.startswith("deg")
             elif section == "root":
                 if words[0] == "order":
                     root_order = [w.upper() for w in words[1:]]
+                    bad = [w for w in root_order if w not in ROOT_CHANNELS]
+                    if bad or len(set(root_order)) != len(root_order):
+                        raise ValueError(f"root order: channels are {', '.join(ROOT_CHANNELS)}, each at most once"
+                                         + (f", got {bad[0][:12]!r}" if bad else ""))
                 elif words[0] == "axis":
-                    root_axis = words[1].upper()
+                    root_axis = _axis_order(words[1])
                 elif words[0] == "orientation":
-                    root_orient = [float(w) for w in words[1:4]]
+                    root_orient = _numbers(words[1:], 3, "root orientation", max_angle)
+                elif words[0] == "position":
+                    _numbers(words[1:], 3, "root position", MAX_OFFSET)
             elif section == "bonedata":
                 if words[0] == "begin":
                     cur = {"dof": []}
@@ -120,8 +169,10 @@ def read_asf(path) -> Skeleton:
                     if cur is None or "name" not in cur or "direction" not in cur:
                         raise ValueError("a bone without name or direction")
                     d = np.asarray(cur["direction"], float)
-                    if not np.isfinite(d).all() or np.linalg.norm(d) == 0:
-                        raise ValueError(f"bone {cur['name']!r}: bad direction")
+                    if np.linalg.norm(d) == 0:
+                        raise ValueError(f"bone {cur['name']!r}: zero direction")
+                    if cur["name"] in bones or cur["name"] == "root":
+                        raise ValueError(f"bone {cur['name']!r} is defined twice (or named root)")
                     bones[cur["name"]] = Bone(cur["name"], d / np.linalg.norm(d), float(cur.get("length", 0.0)),
                                               _euler(cur.get("order", "XYZ"), cur.get("axis", [0, 0, 0]), degrees),
                                               cur["dof"])
@@ -130,15 +181,20 @@ def read_asf(path) -> Skeleton:
                     if words[0] == "name":
                         cur["name"] = words[1]
                     elif words[0] == "direction":
-                        cur["direction"] = [float(w) for w in words[1:4]]
+                        cur["direction"] = _numbers(words[1:], 3, "direction", MAX_OFFSET)
                     elif words[0] == "length":
-                        cur["length"] = float(words[1])
+                        cur["length"] = _numbers(words[1:], 1, "length", MAX_OFFSET)[0]
+                        if cur["length"] < 0:
+                            raise ValueError("negative bone length")
                     elif words[0] == "axis":
-                        cur["axis"], cur["order"] = [float(w) for w in words[1:4]], words[4].upper()
+                        cur["axis"] = _numbers(words[1:], 3, "axis", max_angle)
+                        cur["order"] = _axis_order(words[4])
                     elif words[0] == "dof":
-                        cur["dof"] = [w.lower() for w in words[1:]]
+                        cur["dof"] = _dof(words[1:])
             elif section == "hierarchy" and words[0] not in ("begin", "end"):
                 for child in words[1:]:
+                    if parent.get(child, words[0]) != words[0]:
+                        raise ValueError(f"bone {child[:40]!r} has two parents")
                     parent[child] = words[0]
         except (ValueError, IndexError) as e:
             raise MotionImportError(path, f"malformed ASF ({e})", line=no) from None
@@ -150,15 +206,33 @@ def read_asf(path) -> Skeleton:
     if not 0 < length_unit < 1e6:
         raise MotionImportError(path, f"implausible :units length {length_unit}")
     return Skeleton(INCH_M / length_unit, degrees, root_order, _euler(root_axis, root_orient, degrees), bones,
-                    parent)
+                    parent, path.name)
 
 
 def read_amc(path, skel: Skeleton) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """(root channels [F, len(root order)], {bone: dof values [F, len(dof)]}) of an AMC file."""
+    """(root channels [F, len(root order)], {bone: dof values [F, len(dof)]}) of an AMC file.
+
+    Every frame (numbered 1, 2, ... or from any first number, consecutively) must give the root and every
+    bone of `skel` that has a dof, each once, and no bone `skel` lacks: a frame that lacks a bone (a cut
+    last frame, a take of another skeleton) is an error naming the bone, the frame (0-based) and its line,
+    not a bone held at the rest pose. Angles are within +-`MAX_ANGLE_DEG` and root positions within
+    +-`bvh.MAX_OFFSET` file units, as in BVH files.
+    """
     path = Path(path)
     lines = _text(path, MAX_AMC_BYTES)
     degrees = skel.degrees
+    need = {b for b, bone in skel.bones.items() if bone.dof} | {"root"}
     frames: list[dict[str, list[float]]] = []
+    starts: list[int] = []  # line of each frame's number
+
+    def complete(k: int, at_end: bool = False) -> None:
+        lacking = sorted(need - frames[k].keys())
+        if lacking:
+            cut = " (the file ends inside it: truncated?)" if at_end and k > 0 else ""
+            raise MotionImportError(path, f"the frame lacks bone {lacking[0]!r}{cut}"
+                                    + (f" and {len(lacking) - 1} more" if len(lacking) > 1 else ""),
+                                    line=starts[k], frame=k)
+
     for no, raw in enumerate(lines, 1):
         line = raw.strip()
         if not line or line.startswith("#"):
@@ -171,32 +245,48 @@ def read_amc(path, skel: Skeleton) -> tuple[np.ndarray, dict[str, np.ndarray]]:
             continue
         words = line.split()
         if len(words) == 1 and words[0].isdigit():
+            if frames:
+                complete(len(frames) - 1)
+                if int(words[0]) != first + len(frames):
+                    raise MotionImportError(path, f"frame number {words[0][:12]} after {first + len(frames) - 1}: "
+                                            "frames must be numbered consecutively", line=no, frame=len(frames))
+            else:
+                first = int(words[0])
+            if len(frames) >= MAX_SOURCE_FRAMES:
+                raise MotionImportError(path, f"more than {MAX_SOURCE_FRAMES} frames", line=no)
             frames.append({})
+            starts.append(no)
             continue
         if not frames:
             raise MotionImportError(path, "values before the first frame number", line=no)
+        bone = words[0]
+        if bone != "root" and bone not in skel.bones:
+            raise MotionImportError(path, f"bone {bone[:40]!r} is not in the skeleton {skel.name} (the take of "
+                                    "another skeleton?)", line=no, frame=len(frames) - 1)
+        if bone in frames[-1]:
+            raise MotionImportError(path, f"bone {bone[:40]!r} twice in one frame", line=no, frame=len(frames) - 1)
         try:
-            frames[-1][words[0]] = [float(w) for w in words[1:]]
+            frames[-1][bone] = [float(w) for w in words[1:]]
         except ValueError:
-            raise MotionImportError(path, f"bad number in {words[0][:40]!r}", line=no) from None
+            raise MotionImportError(path, f"bad number in {bone[:40]!r}", line=no) from None
+        n_dof = len(skel.root_order) if bone == "root" else len(skel.bones[bone].dof)
+        if len(words) - 1 != n_dof:
+            raise MotionImportError(path, f"bone {bone!r} has {len(words) - 1} values, its "
+                                    f"{'order' if bone == 'root' else 'dof'} {n_dof}", line=no, frame=len(frames) - 1)
     if len(frames) < 2:
         raise MotionImportError(path, "fewer than two frames")
+    complete(len(frames) - 1, at_end=True)
     if degrees != skel.degrees:  # the AMC's own unit wins: convert to the skeleton's
         factor = 180.0 / np.pi if skel.degrees else np.pi / 180.0
     else:
         factor = 1.0
     root = []
     values = {b: [] for b in skel.bones}
-    for k, fr in enumerate(frames):
-        if "root" not in fr or len(fr["root"]) != len(skel.root_order):
-            raise MotionImportError(path, "root channels missing or of the wrong count", frame=k)
+    for fr in frames:  # complete and of the right counts (checked above); bones without dof give []
         root.append(fr["root"])
-        for b, bone in skel.bones.items():
-            v = fr.get(b, [0.0] * len(bone.dof))
-            if len(v) != len(bone.dof):
-                raise MotionImportError(path, f"bone {b!r} has {len(v)} values, its dof {len(bone.dof)}", frame=k)
-            values[b].append(v)
-    root = np.asarray(root, float)
+        for b in skel.bones:
+            values[b].append(fr.get(b, []))
+    root = np.asarray(root, float).reshape(len(frames), len(skel.root_order))
     rot_cols = [i for i, c in enumerate(skel.root_order) if c.startswith("R")]
     root[:, rot_cols] *= factor
     out = {}
@@ -205,8 +295,17 @@ def read_amc(path, skel: Skeleton) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         rot = [i for i, d in enumerate(bone.dof) if d.startswith("r")]
         arr[:, rot] *= factor
         out[b] = arr
-    if not (np.isfinite(root).all() and all(np.isfinite(v).all() for v in out.values())):
-        raise MotionImportError(path, "non-finite joint angles")
+    max_angle = MAX_ANGLE_DEG if skel.degrees else np.radians(MAX_ANGLE_DEG)
+    pos_cols = [i for i in range(len(skel.root_order)) if i not in rot_cols]
+    for b, arr, limit, what in [("root", root[:, rot_cols], max_angle, "angle"),
+                                ("root", root[:, pos_cols], MAX_OFFSET, "position"),
+                                *((b, v, max_angle, "angle") for b, v in out.items())]:
+        bad = ~(np.abs(arr) <= limit).all(axis=1)  # nan compares False: caught too
+        if bad.any():
+            k = int(np.argmax(bad))
+            unit = "file units" if what == "position" else "deg" if skel.degrees else "rad"
+            raise MotionImportError(path, f"bone {b!r}: {what} {np.abs(arr[k]).max():.3g} is not finite or beyond "
+                                    f"+-{limit:g} {unit}", line=starts[k], frame=k)
     return root, out
 
 

@@ -14,6 +14,10 @@ from rtchannel.motion.pose import Motion
 from processing.errors import InputError
 
 ROOT = 0  # the hips: the rig's root joint
+# placement bounds, as procedural motions' (`ProceduralParams`): a heading beyond +-10 turns is a typo or
+# corruption, a start beyond `source.MAX_COORD_M` (100 m, the largest capture volume) is no room
+MAX_HEADING_DEG = 3600.0
+MAX_START_M = 100.0
 
 
 def _rz(angle: float) -> np.ndarray:
@@ -123,14 +127,26 @@ def centre_walk(motion: Motion, back_and_forth_legs: int = 1) -> Motion:
     return motion.transformed(0.0, (-mid[0], -mid[1], 0.0))
 
 
+def check_placement(start=None, heading_deg: float | None = None, start_name: str = "--start",
+                    heading_name: str = "--heading") -> None:
+    """InputError naming the option unless `start` (x, y) [m] lies within +-`MAX_START_M` and `heading_deg`
+    [deg] within +-`MAX_HEADING_DEG` (the bounds of procedural placement), both finite."""
+    if start is not None and not all(abs(float(x)) <= MAX_START_M for x in start):  # nan fails too
+        raise InputError(f"{start_name}: {' '.join(f'{float(x):g}' for x in start)} m: each coordinate must lie within "
+                         f"+-{MAX_START_M:g} m")
+    if heading_deg is not None and not abs(float(heading_deg)) <= MAX_HEADING_DEG:
+        raise InputError(f"{heading_name}: {float(heading_deg):g} deg is outside +-{MAX_HEADING_DEG:g} deg")
+
+
 def place_take(motion: Motion, start=None, heading_deg: float | None = None, trim=None) -> Motion:
     """An imported take `motion` placed in the room: `trim` (t0, t1) [s] of it kept first, turned to face `heading_deg`
     [deg, counter-clockwise from +x] about its first frame's hips, then started at `start` (x, y) [m]; without a
     start a walk is centred on the origin like a procedural one (`centre_walk`), any other take starts over
-    the origin as imported. InputError (naming --trim) for a window outside the take."""
-    from processing.errors import InputError
+    the origin as imported. InputError (naming --trim, --start or --heading) for a window outside the take or a
+    placement beyond procedural motions' bounds (`check_placement`)."""
     from rtchannel.motion.augment import augment
 
+    check_placement(start, heading_deg)
     if trim is not None and not 0 <= trim[0] < trim[1]:
         raise InputError(f"--trim: need 0 <= START < END seconds, got {trim[0]:g} {trim[1]:g}")
     if trim is not None and trim[0] >= motion.duration:

@@ -18,14 +18,17 @@ pose estimators give no segment rotation, so a limb's twist follows the pelvis a
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from processing.errors import one_line
+from rtchannel.errors import ConfigError
 from rtchannel.motion.errors import MotionImportError
-from rtchannel.motion.source import (SourceMotion, check_extent, check_fps, guess_up, parse_units,
-                                     up_rotation)
+from rtchannel.motion.source import (MAX_SOURCE_FRAMES, SourceMotion, check_extent, check_fps, check_times, guess_up,
+                                     parse_units, up_rotation)
 
 REQUIRED = tuple(f"{s}_{j}" for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist") for s in ("left", "right"))
 OPTIONAL = ("left_heel", "right_heel", "left_toe", "right_toe", "neck", "head", "pelvis")
@@ -34,6 +37,10 @@ _JOINTS = {"hip": "hip", "knee": "knee", "ankle": "ankle", "shoulder": "shoulder
 _CENTRAL = {"neck": "neck", "head": "head", "nose": "head", "headtop": "head", "pelvis": "pelvis",
             "midhip": "pelvis", "hips": "pelvis", "root": "pelvis"}
 LATERAL_M, WRIST_HALF_M, FINGER_M, HEAD_M = 0.05, 0.03, 0.09, 0.2
+MAX_CSV_BYTES = 1 << 30  # as a BVH file's text
+# the pelvis and thorax frames are built from two directions each (hips' left-right and the trunk's up, the
+# shoulders' and the trunk's): a real pair spans ~0.2 m x 0.5 m = 0.1 m^2; below 1 cm x 1 cm the axes are noise
+MIN_FRAME_AREA_M2 = 1e-4
 
 
 def canonical(name: str) -> str | None:
@@ -50,38 +57,95 @@ def canonical(name: str) -> str | None:
     return None
 
 
+def _npy_header(zf, member: str):
+    """(shape, dtype) of the ``.npy`` member `member` of an open NPZ, read from its header alone (nothing
+    allocated); ValueError if the header is not an array's or disagrees with the member's size."""
+    from numpy.lib import format as npy
+
+    info = zf.getinfo(member)
+    with zf.open(info) as f:
+        version = npy.read_magic(f)
+        read = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+        shape, _fortran, dtype = read(f)
+        header = f.tell()
+    if dtype.hasobject:
+        raise ValueError(f"{member}: object arrays are not read (pickles)")
+    if info.file_size != header + int(np.prod(shape, dtype=object)) * dtype.itemsize:
+        raise ValueError(f"{member}: the array header disagrees with its data")
+    return shape, dtype
+
+
+def _check_npz(path: Path) -> None:
+    """Shapes, types and sizes of a joint-position NPZ checked from the arrays' headers before anything is
+    loaded (a few bytes may claim 70 GiB): positions [F, J, 3] numbers with F <= `MAX_SOURCE_FRAMES`,
+    J <= `bvh.MAX_JOINTS` and F x J x 3 <= `bvh.MAX_VALUES`; names [J] strings; fps, units, up single values."""
+    import zipfile
+
+    from rtchannel.motion.bvh import MAX_JOINTS, MAX_VALUES
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            members = set(zf.namelist())
+            lacking = [k for k in ("positions", "names", "fps") if f"{k}.npy" not in members]
+            if lacking:
+                raise MotionImportError(path, f"not a joint-position NPZ: lacks {', '.join(lacking)} (positions, "
+                                        "names, fps)")
+            shapes = {k: _npy_header(zf, f"{k}.npy") for k in ("positions", "names", "fps", "units", "up")
+                      if f"{k}.npy" in members}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
+        raise MotionImportError(path, f"not a joint-position NPZ (positions, names, fps): {one_line(e, 120)}") from None
+    (shape, dtype), (n_shape, n_dtype) = shapes["positions"], shapes["names"]
+    if len(shape) != 3 or shape[2] != 3 or dtype.kind not in "fiu":
+        raise MotionImportError(path, f"positions must be numbers [frames, joints, 3], got {dtype} {list(shape)}")
+    if not (2 <= shape[0] <= MAX_SOURCE_FRAMES and 1 <= shape[1] <= MAX_JOINTS and shape[0] * shape[1] * 3 <= MAX_VALUES):
+        raise MotionImportError(path, f"positions {list(shape)}: 2..{MAX_SOURCE_FRAMES} frames, 1..{MAX_JOINTS} joints "
+                                f"and at most {MAX_VALUES} values")
+    if len(n_shape) != 1 or n_shape[0] != shape[1] or n_dtype.kind not in "US":
+        raise MotionImportError(path, f"names must be {shape[1]} strings (one per joint of positions), got "
+                                f"{n_dtype} {list(n_shape)}")
+    for key, kinds in (("fps", "fiu"), ("units", "fiuUS"), ("up", "US")):
+        if key in shapes and (int(np.prod(shapes[key][0])) != 1 or shapes[key][1].kind not in kinds):
+            raise MotionImportError(path, f"{key} must be a single {'number' if kinds == 'fiu' else 'value'}, got "
+                                    f"{shapes[key][1]} {list(shapes[key][0])}")
+
+
 def _read(path: Path) -> tuple[dict[str, np.ndarray], float, str | None, str | None]:
     """(raw joints {file name: [F, 3]}, fps, units, up) of an NPZ or CSV joint file."""
     if path.suffix.lower() == ".npz":
+        _check_npz(path)
         try:
             with np.load(path, allow_pickle=False) as z:
                 pos = np.asarray(z["positions"], float)
-                names = [str(x) for x in z["names"]]
-                fps = float(z["fps"])
-                units = str(z["units"]) if "units" in z.files else None
-                up = str(z["up"]) if "up" in z.files else None
-        except (OSError, KeyError, ValueError) as e:
+                names = [x.decode("latin-1") if isinstance(x, bytes) else str(x) for x in z["names"].tolist()]
+                fps = float(z["fps"].reshape(()))
+                units = z["units"].reshape(()).item() if "units" in z.files else None
+                up = str(z["up"].reshape(())) if "up" in z.files else None
+        except (OSError, KeyError, ValueError, EOFError) as e:
             raise MotionImportError(path, f"not a joint-position NPZ (positions, names, fps): {type(e).__name__}") from None
-        if pos.ndim != 3 or pos.shape[1:] != (len(names), 3):
-            raise MotionImportError(path, f"positions must be [frames, {len(names)}, 3], got {list(pos.shape)}")
+        if isinstance(units, bytes):
+            units = units.decode("latin-1")
         return {n: pos[:, k] for k, n in enumerate(names)}, fps, units, up
+    if path.stat().st_size > MAX_CSV_BYTES:
+        raise MotionImportError(path, f"file larger than {MAX_CSV_BYTES >> 20} MiB")
     try:
-        header = path.read_text(encoding="utf-8").splitlines()[0].split(",")
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        header = path.read_text(encoding="utf-8-sig").splitlines()[0].split(",")  # a BOM, as spreadsheets write
+        with warnings.catch_warnings():  # an empty table is refused below, not warned about
+            warnings.simplefilter("ignore", UserWarning)
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     except (OSError, ValueError, IndexError, UnicodeDecodeError) as e:
         raise MotionImportError(path, f"not a joint-position CSV (time,<name>_x,...): {type(e).__name__}") from None
+    if data.size == 0:
+        raise MotionImportError(path, "no data rows after the header")
     if header[0].strip().lower() != "time" or (len(header) - 1) % 3 or data.shape[1] != len(header):
         raise MotionImportError(path, "the header must be time,<name>_x,<name>_y,<name>_z,...", line=1)
-    t = data[:, 0]
-    if len(t) < 2 or not np.all(np.diff(t) > 0):
-        raise MotionImportError(path, "time must increase")
+    fps = check_times(path, data[:, 0])
     joints = {}
     for k in range(1, len(header), 3):
         base = header[k].strip()
         if not base.endswith("_x") or header[k + 1].strip() != base[:-2] + "_y" or header[k + 2].strip() != base[:-2] + "_z":
             raise MotionImportError(path, f"columns {k + 1}-{k + 3} must be <name>_x,<name>_y,<name>_z", line=1)
         joints[base[:-2]] = data[:, k:k + 3]
-    return joints, float((len(t) - 1) / (t[-1] - t[0])), None, None
+    return joints, fps, None, None
 
 
 def _frame(x, y_hint):
@@ -98,7 +162,10 @@ def read_joint_tracks(path, *, units=None, up: str | None = None) -> SourceMotio
     if not path.is_file():
         raise MotionImportError(path, "no such file")
     raw, fps, file_units, file_up = _read(path)
-    check_fps(fps)
+    try:
+        check_fps(fps)
+    except ConfigError as e:
+        raise MotionImportError(path, f"the file's frame rate: {e}") from None
     joints = {}
     for name, v in raw.items():
         c = canonical(name)
@@ -108,19 +175,25 @@ def read_joint_tracks(path, *, units=None, up: str | None = None) -> SourceMotio
     if missing:
         raise MotionImportError(path, f"joint positions lack {', '.join(missing)} (found: {', '.join(sorted(raw))[:200]})")
     scale = parse_units(units if units is not None else file_units) or 1.0
+    bad = [k for k, v in joints.items() if not np.isfinite(v).all()]
+    if bad:
+        raise MotionImportError(path, f"{bad[0]}: missing or non-finite positions (fill gaps before importing)",
+                                frame=int(np.argmax(~np.isfinite(joints[bad[0]]).all(axis=1))))
+    check_extent(path, {k: v * scale for k, v in joints.items()})  # before any arithmetic on them
     head_src = joints.get("head", joints.get("neck", 0.5 * (joints["left_shoulder"] + joints["right_shoulder"])))
     up_axis = up or file_up or guess_up(head_src, 0.5 * (joints["left_ankle"] + joints["right_ankle"]))
     c = up_rotation(up_axis) * scale
     j = {k: v @ c.T for k, v in joints.items()}
-    bad = [k for k, v in j.items() if not np.isfinite(v).all()]
-    if bad:
-        raise MotionImportError(path, f"{bad[0]}: missing or non-finite positions (fill gaps before importing)",
-                                frame=int(np.argmax(~np.isfinite(j[bad[0]]).all(axis=1))))
     hips = 0.5 * (j["left_hip"] + j["right_hip"])
     shoulders = 0.5 * (j["left_shoulder"] + j["right_shoulder"])
     neck = j.get("neck", shoulders)
     trunk_up = neck - hips
     left = j["left_hip"] - j["right_hip"]
+    for what, a, b in (("hips", left, trunk_up), ("shoulders", j["left_shoulder"] - j["right_shoulder"], trunk_up)):
+        flat = np.linalg.norm(np.cross(a, b), axis=-1) < MIN_FRAME_AREA_M2
+        if flat.any():
+            raise MotionImportError(path, f"the {what} coincide or lie on the trunk's line: no body frame (degenerate "
+                                    "joint positions)", frame=int(np.argmax(flat)))
     pelvis = _frame(np.cross(left, trunk_up), left)  # x forward = left x up
     thorax = _frame(np.cross(j["left_shoulder"] - j["right_shoulder"], trunk_up),
                     j["left_shoulder"] - j["right_shoulder"])

@@ -16,11 +16,12 @@ FORMATS = (".bvh", ".c3d", ".amc", ".json", ".npz", ".csv")
 PLAUSIBLE_HEIGHT_M = (1.0, 2.3)  # a person's standing height as imported (children excluded)
 HEAD_ABOVE_FEET = 0.5  # first frame: head above the ankles, share of the height (standing ~0.9, seated ~0.6)
 MAX_GAP_LIMIT_S = 10.0  # filling a longer marker gap by interpolation invents the motion
+DEFAULT_MAX_GAP_S = 0.2  # C3D: a marker hidden for a few frames (a limb passing the body) is filled
 
 
 def load_motion(path, *, fps: float | None = None, units=None, up: str | None = None,
                 height: float | None = None, activity: str = "", align: bool = True,
-                floor: bool = True, max_gap_s: float = 0.2, on_long_gap: str = "error",
+                floor: bool = True, max_gap_s: float = DEFAULT_MAX_GAP_S, on_long_gap: str = "error",
                 skeleton=None) -> Motion:
     """Import a BVH or C3D file and retarget it onto the avatar rig.
 
@@ -46,7 +47,8 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     Raises:
         MotionImportError: unreadable, truncated or corrupted file (message names file and line/frame).
         ConfigError: an argument out of range (fps outside 10..2000 Hz or too many resampled frames,
-            unknown units or up axis, max_gap_s outside 0..10 s).
+            unknown units or up axis, max_gap_s outside 0..10 s) or for another format (a skeleton for
+            anything but AMC, units for OpenCap JSON, gap options for anything but C3D).
     """
     p = Path(path)
     if fps is not None:
@@ -67,6 +69,11 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     if (ext == ".amc") != (skeleton is not None):
         raise ConfigError(f"{p.name}: an .amc motion needs its ASF skeleton (skeleton=, --skeleton) and only an "
                           ".amc motion takes one")
+    if ext == ".json" and units is not None:
+        raise ConfigError(f"{p.name}: units applies to BVH, C3D, ASF/AMC and joint positions; OpenCap body "
+                          "kinematics are in metres")
+    if ext != ".c3d" and (max_gap_s != DEFAULT_MAX_GAP_S or on_long_gap != "error"):
+        raise ConfigError(f"{p.name}: max_gap_s and on_long_gap apply to C3D marker gaps only")
     if ext == ".bvh":
         from rtchannel.motion.bvh import read_bvh
 
@@ -94,6 +101,9 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     try:
         with np.errstate(invalid="ignore", divide="ignore"):  # degenerate input is reported below, not warned
             motion = retarget(src, height=height, activity=activity, align=align, floor=floor)
+    except np.linalg.LinAlgError:  # a fit over coincident points (the importers refuse the cases they know)
+        raise MotionImportError(p, "degenerate skeleton or markers (coincident joints?): the retargeting fit "
+                                "failed") from None
     except ValueError as exc:  # e.g. an implausible height
         raise MotionImportError(p, one_line(exc)) from None
     except KeyError as exc:  # the joint map of the detected rig names a joint the file lacks

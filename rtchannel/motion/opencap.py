@@ -19,7 +19,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from rtchannel.motion.errors import MotionImportError
-from rtchannel.motion.source import SourceMotion, check_extent, up_rotation
+from rtchannel.motion.source import (MAX_ANGLE_DEG, MAX_COORD_M, SourceMotion, check_extent, check_times,
+                                     up_rotation)
 
 MAX_JSON_BYTES = 1 << 30
 BODIES = ("pelvis", "femur_l", "femur_r", "tibia_l", "tibia_r", "talus_l", "talus_r", "calcn_l", "calcn_r",
@@ -55,17 +56,24 @@ def read_opencap(path, *, up: str | None = None) -> SourceMotion:
         euler = {b: np.asarray(bodies[b]["rotation"], float) for b in BODIES}
     except MotionImportError:
         raise
+    except RecursionError:  # json's decoder recurses per nesting level
+        raise MotionImportError(path, "not OpenCap body kinematics JSON (nested too deeply)") from None
     except (ValueError, KeyError, TypeError) as e:
         raise MotionImportError(path, f"not OpenCap body kinematics JSON ({type(e).__name__}: {str(e)[:80]})") from None
     n = t.size
-    if n < 2 or not np.all(np.diff(t) > 0):
-        raise MotionImportError(path, "time must hold two or more increasing values")
+    if t.ndim != 1:
+        raise MotionImportError(path, f"time must be a list of numbers, got shape {list(t.shape)[:4]}")
+    fps = check_times(path, t)
+    max_rad = np.radians(MAX_ANGLE_DEG)
     for b in BODIES:
         if trans[b].shape != (n, 3) or euler[b].shape != (n, 3):
             raise MotionImportError(path, f"body {b}: translation and rotation must be [{n}][3]")
-        if not (np.isfinite(trans[b]).all() and np.isfinite(euler[b]).all()):
-            raise MotionImportError(path, f"body {b}: non-finite values", frame=int(np.argmax(
-                ~(np.isfinite(trans[b]).all(axis=1) & np.isfinite(euler[b]).all(axis=1)))))
+        for what, v, limit, unit in (("translation", trans[b], MAX_COORD_M, "m"), ("rotation", euler[b], max_rad, "rad")):
+            bad = ~(np.abs(v) <= limit).all(axis=1)  # nan compares False: caught too
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise MotionImportError(path, f"body {b}: {what} {np.abs(v[k]).max():.3g} is not finite or beyond "
+                                        f"+-{limit:.4g} {unit}", frame=k)
     c = up_rotation(up or "y")
     pos = {b: trans[b] @ c.T for b in BODIES}
     # columns (forward, left, up) of each body frame in the project frame: OpenSim's x, -z, y
@@ -97,7 +105,6 @@ def read_opencap(path, *, up: str | None = None) -> SourceMotion:
     for k, frac in (("lumbar1", 1 / 3), ("lumbar2", 2 / 3)):
         frames[k] = frame["pelvis"] @ Rotation.from_rotvec(rel.as_rotvec() * frac).as_matrix()
     check_extent(path, pts)
-    fps = float((n - 1) / (t[-1] - t[0]))
     info = {"format": "opencap-json", "rig": "c3d", "units": "m", "metres_per_unit": 1.0, "up": up or "y",
             "source_frames": n, "bodies": len(bodies)}
     # the default pose (every body frame the ground's) is the neutral of every frame

@@ -20,6 +20,7 @@ FILE_FPS_RANGE = (1.0, 10000.0)  # frame rates of motion files [Hz]: mocap syste
 FPS_RANGE = (10.0, 2000.0)  # frame rates a motion is resampled to [Hz] (as ProceduralParams.fps)
 MAX_DURATION_S = 3600.0  # one take; longer is a corrupted header (split long recordings)
 MAX_SOURCE_FRAMES = 200_000  # frames of one file (28 min at 120 Hz); memory ~ frames x joints x 100 B
+TIME_STEP_TOLERANCE = 0.01  # share of the median step: a dropped frame or a variable rate changes speeds by more
 UNIT_RANGE_M = (1e-6, 1e3)  # metres per file unit accepted for units= (micrometre .. kilometre)
 
 # metres per file unit; "cmu" is the CMU/cgspeed BVH unit (1/0.45 inch)
@@ -91,6 +92,36 @@ def check_fps(fps, what: str = "fps") -> float:
     if not FPS_RANGE[0] <= f <= FPS_RANGE[1]:
         raise ConfigError(f"{what}: {f:g} Hz is outside {FPS_RANGE[0]:g}..{FPS_RANGE[1]:g} Hz")
     return f
+
+
+def check_times(path, t) -> float:
+    """The frame rate [Hz] of time stamps `t` [F] (s): `MotionImportError` naming the file (and frame) unless
+    they are finite, at least two, increasing with a uniform step (each within `TIME_STEP_TOLERANCE` of the
+    median: the importers assume one rate), at most `MAX_SOURCE_FRAMES` over at most `MAX_DURATION_S`, at a
+    rate within `FILE_FPS_RANGE`."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    if not 2 <= t.size <= MAX_SOURCE_FRAMES:
+        raise MotionImportError(path, f"{t.size} time stamps; need 2..{MAX_SOURCE_FRAMES}")
+    if not np.isfinite(t).all():
+        raise MotionImportError(path, "non-finite time stamp", frame=int(np.argmax(~np.isfinite(t))))
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e308 - (-1e308) overflows: refused below
+        step = np.diff(t)
+        duration = t[-1] - t[0]
+    if not (step > 0).all():
+        raise MotionImportError(path, "time must increase", frame=int(np.argmax(~(step > 0))) + 1)
+    if not duration <= MAX_DURATION_S:
+        raise MotionImportError(path, f"the time stamps span {duration:.4g} s, more than {MAX_DURATION_S:g} s")
+    median = float(np.median(step))
+    off = np.abs(step - median) > TIME_STEP_TOLERANCE * median
+    if off.any():
+        k = int(np.argmax(off))
+        raise MotionImportError(path, f"time steps are not uniform ({step[k]:.4g} s after frame {k}, median "
+                                f"{median:.4g} s): resample to one rate first", frame=k + 1)
+    fps = float((t.size - 1) / duration)
+    if not FILE_FPS_RANGE[0] <= fps <= FILE_FPS_RANGE[1]:
+        raise MotionImportError(path, f"time stamps give {fps:.4g} frames/s, outside {FILE_FPS_RANGE[0]:g}.."
+                                f"{FILE_FPS_RANGE[1]:g} (seconds expected)")
+    return fps
 
 
 def check_extent(path, points: dict[str, np.ndarray], line_of_frame=None) -> None:

@@ -12,6 +12,8 @@ import hashlib
 import re
 from pathlib import Path
 
+import numpy as np
+
 from processing.atomic import write_text_atomic
 from processing.errors import InputError
 
@@ -19,6 +21,7 @@ PREFIX = "room:"
 _BOUNDS = re.compile(r"^room:(-?\d+(?:\.\d+)?),(-?\d+(?:\.\d+)?),(-?\d+(?:\.\d+)?),(-?\d+(?:\.\d+)?),(\d+(?:\.\d+)?)$")
 MIN_SIDE_M, MAX_SIDE_M = 1.0, 100.0  # a room smaller than a person or larger than a hall is a typo
 MIN_HEIGHT_M, MAX_HEIGHT_M = 1.8, 20.0
+DEFAULT_ROOM = (-4.0, 4.0, -4.0, 4.0, 3.0)  # the scene "room" (scenes/room.xml): 8 x 8 m, 3 m walls, centred
 
 # one rectangle per face: Mitsuba's rectangle spans [-1, 1]^2 in its local xy plane with normal +z; the walls
 # are turned so that their normals point into the room (the room side, where wall images are valid)
@@ -85,3 +88,34 @@ def room_xml_path(name: str, cache_dir: Path | None = None) -> Path:
 def is_room_name(source) -> bool:
     """Whether a scene source names a generated room."""
     return isinstance(source, str) and source.startswith(PREFIX)
+
+
+def box_bounds(source) -> tuple[float, float, float, float, float] | None:
+    """(x0, x1, y0, y1, height) [m] of the box room a scene source names ("room" or ``room:...``, also as a
+    `Scene`'s source), or None for anything else (free space, a user's XML file, an `RTScene`)."""
+    source = getattr(source, "source", source)
+    if isinstance(source, str) and source == "room":
+        return DEFAULT_ROOM
+    return room_bounds(source) if is_room_name(source) else None
+
+
+def check_inside_room(motion, scene) -> None:
+    """InputError unless the hips of `motion` (`Motion`, its root joint, positions [F, J, 3] m) stay strictly
+    inside the walls of the box room `scene` names (`box_bounds`; other scenes are not checked) in every frame:
+    a person outside the walls, or walking through one, would be traced from behind concrete without a word.
+    Limbs are not checked: a hand on a wall, or a stride's toes past where the hips turn, is a real pose (and
+    drawn rooms keep 2 m of floor around the person's spot, `plan_physical.RoomDraw`)."""
+    from rtchannel.errors import MOVE_THE_PERSON
+
+    bounds = box_bounds(scene)
+    if bounds is None:
+        return
+    x0, x1, y0, y1, _ = bounds
+    xy = motion.positions[:, 0, :2]
+    out = ~((xy[:, 0] > x0) & (xy[:, 0] < x1) & (xy[:, 1] > y0) & (xy[:, 1] < y1))  # nan is outside too
+    if out.any():
+        k = int(np.argmax(out))
+        name = getattr(scene, "source", scene)
+        raise InputError(f"scene {name}: the person is outside the room's walls (x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m):"
+                         f" hips at ({xy[k, 0]:.3g}, {xy[k, 1]:.3g}) m at t = {k / motion.fps:.2f} s" + MOVE_THE_PERSON)
+
