@@ -13,7 +13,7 @@ the physical-optics term scaled by the same roughness's specular factor, whose p
 the wall's specular return; the body's wall and floor bounces use that same factor (`wall_factor`). The
 link's polarisation ("V" or "H", its antennas') sets the reflection coefficients. A patch counts only when
 the segments antenna -> patch are free of static geometry; the body shadows them partially, by single
-knife-edge diffraction (`knife_edge`: 1 clear, 0.5 grazing, ~25 dB deep), evaluated at the backend's traced
+knife-edge diffraction (`knife_edge`: 1 clear, 0.5 grazing, 22.6 dB deep), evaluated at the backend's traced
 frames (the 2k body) and faded linearly between them. Antenna patterns apply as for every path.
 
 A reduced set, not every triangle of a detailed scene: patches finer than half a range bin add nothing the
@@ -200,7 +200,7 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
                     if b.size:
                         hit = caster.occluded_cells(np.broadcast_to(antennas[a], (b.size, 3)), dirs[k], dists[k], b)
                         free[a, s0 + b, k] = segment_amplitudes(antennas[a], patches.centroids[k], chunk, b, hit,
-                                                                wavelength)
+                                                                wavelength, faces)
     index = {tuple(p): i for i, p in enumerate(antennas)}
     # interpolation from traced to all frames: linear fade, as the facets' own gains
     if len(trace_idx) == f_n:

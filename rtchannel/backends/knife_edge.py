@@ -11,13 +11,16 @@ eq. (31): J(nu) = 6.9 + 20 log10(sqrt((nu - 0.1)^2 + 1) + nu - 0.1) for nu > -0.
 smoothly from 0 dB (clear by more than 0.55 r1) through 6.0 dB (grazing, nu = 0: half the field) to deep
 shadow (about 20.5 dB at nu = 2.4).
 
-The body is a mesh, not a half-plane: `shadow_nu` estimates h for each segment from the body's vertices, in
-the plane across the segment, each vertex scaled by the Fresnel radius at its own distance along the segment
-(so a vertex near either end, where the zone is thin, counts for less): a clear segment (the ray cast found
-no hit) takes the nearest vertex's clearance; a blocked one the shortest way out of the body, the least, over
-`N_DIRECTIONS` directions across the segment, of how far the body's vertices within a strip of half-width
-`STRIP` (in r1) along that direction reach. nu is capped at `NU_MAX`: deeper shadows take J(NU_MAX) =
-24.9 dB, far below anything the MTI leaves of the clutter (the binary shadow it replaces was -inf dB there).
+The body is a mesh, not a half-plane: `shadow_nu` estimates h for each segment from the body's silhouette
+vertices as seen from the antenna (vertices shared by a triangle facing it and one facing away: the edges
+that bound the body in every plane across a segment from the antenna), in the plane across the segment, each
+scaled by the Fresnel radius at its own distance along the segment (so a vertex near either end, where the
+zone is thin, counts for less): a clear segment (the ray cast found no hit) takes the nearest one's
+clearance; a blocked one the shortest way out of the body, the least, over `N_DIRECTIONS` directions across
+the segment, of how far the silhouette vertices within a strip of half-width `STRIP` (in r1) along that
+direction reach (the outer outline: an arm's own edge in front of the trunk does not end the shadow). nu is capped at `NU_MAX`: deeper shadows
+take J(NU_MAX) = 22.6 dB, far below anything the MTI leaves of the clutter (the binary shadow it replaced was
+-inf dB there); the cap bounds the vertices a blocked segment must visit (its window grows with NU_MAX^2).
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ import numba
 import numpy as np
 
 NU_CLEAR = -0.78  # ITU-R P.526: no loss at or below this clearance
-NU_MAX = 4.0  # deepest shadow evaluated (J = 24.9 dB); caps the vertices a blocked segment must look at
+NU_MAX = 3.0  # deepest shadow evaluated (J = 22.6 dB); caps the vertices a blocked segment must look at
 N_DIRECTIONS = 8  # directions across the segment in which a blocked line of sight may leave the body
 STRIP = 0.5  # half-width [r1] of the strip of vertices that bounds the body along one direction
 
@@ -57,13 +60,26 @@ def box_margin_m(wavelength: float, max_length_m: float) -> float:
     return -NU_CLEAR / math.sqrt(2.0) * 0.5 * math.sqrt(wavelength * max(max_length_m, 0.0))
 
 
-def segment_amplitudes(pos, targets, verts, frame, hit, wavelength: float) -> np.ndarray:
+def segment_amplitudes(pos, targets, verts, frame, hit, wavelength: float, faces=None) -> np.ndarray:
     """Knife-edge field factors [N] of segments pos [3] -> targets [N, 3] (m) past the body vertices
-    verts [B, V, 3] (m) of frame[N] (indices into B), given whether a ray cast found each blocked (hit [N])."""
-    return knife_edge_amplitude(shadow_nu(pos, targets, verts, frame, hit, wavelength))
+    verts [B, V, 3] (m) of frame[N] (indices into B), given whether a ray cast found each blocked (hit [N]);
+    faces [F, 3]: the body's triangles (its silhouette from `pos` is used), None: every vertex counts."""
+    return knife_edge_amplitude(shadow_nu(pos, targets, verts, frame, hit, wavelength, faces))
 
 
-def shadow_nu(pos, targets, verts, frame, hit, wavelength: float) -> np.ndarray:
+def silhouette(pos, verts, faces) -> np.ndarray:
+    """[B, V] vertices of verts [B, V, 3] on the silhouette seen from pos [3]: shared by a triangle of faces
+    [F, 3] facing pos and one facing away."""
+    v = np.asarray(verts, float)
+    a, b, c = v[:, faces[:, 0]], v[:, faces[:, 1]], v[:, faces[:, 2]]
+    front = np.einsum("bfi,bfi->bf", np.cross(b - a, c - a), np.asarray(pos, float) - a) > 0
+    out = np.zeros(v.shape[:2], np.int8)
+    for k in range(3):  # bit 1: a front face uses the vertex, bit 2: a back face does
+        np.bitwise_or.at(out, (np.arange(len(v))[:, None], faces[:, k][None, :]), np.where(front, 1, 2).astype(np.int8))
+    return out == 3
+
+
+def shadow_nu(pos, targets, verts, frame, hit, wavelength: float, faces=None) -> np.ndarray:
     """Diffraction parameters nu [N] of segments pos [3] -> targets [N, 3] past verts[frame[i]] (module doc)."""
     pos = np.asarray(pos, float)
     verts = np.ascontiguousarray(verts, float)
@@ -71,23 +87,28 @@ def shadow_nu(pos, targets, verts, frame, hit, wavelength: float) -> np.ndarray:
     out = np.full(len(frame), NU_CLEAR - 1.0)
     if not len(frame):
         return out
-    # per frame: the vertices sorted by azimuth about the body's mean bearing, so a segment visits only the
-    # vertices within its angular window
+    # per frame: the (silhouette) vertices sorted by azimuth about the body's mean bearing, so a segment visits
+    # only the vertices within its angular window; the others sort to the end, past `count`
     d = verts - pos
     bearing = np.arctan2(d[..., 1].mean(axis=1), d[..., 0].mean(axis=1))
     az = np.angle(np.exp(1j * (np.arctan2(d[..., 1], d[..., 0]) - bearing[:, None])))
+    if faces is not None:
+        az = np.where(silhouette(pos, verts, np.asarray(faces, np.int64)), az, np.inf)
     order = np.argsort(az, axis=1)
     az_sorted = np.take_along_axis(az, order, axis=1)
     dist = np.linalg.norm(d, axis=-1)
+    el_sorted = np.take_along_axis(np.arcsin(np.clip(d[..., 2] / np.maximum(dist, 1e-12), -1, 1)), order, axis=1)
     t = np.asarray(targets, float) - pos
     t_az = np.angle(np.exp(1j * (np.arctan2(t[:, 1], t[:, 0]) - bearing[frame])))
+    t_el = np.arcsin(np.clip(t[:, 2] / np.linalg.norm(t, axis=1), -1, 1))
     _nu_kernel(pos, np.ascontiguousarray(targets, float), verts, np.ascontiguousarray(order), az_sorted,
-               dist.min(axis=1), frame, np.ascontiguousarray(hit, np.bool_), t_az, float(wavelength), out)
+               np.ascontiguousarray(el_sorted), dist.min(axis=1), frame, np.ascontiguousarray(hit, np.bool_), t_az,
+               t_el, float(wavelength), out)
     return out
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _nu_kernel(pos, targets, verts, order, az_sorted, d_min, frame, hit, t_az, wavelength, out):
+def _nu_kernel(pos, targets, verts, order, az_sorted, el_sorted, d_min, frame, hit, t_az, t_el, wavelength, out):
     n_dir = N_DIRECTIONS
     cs = np.empty(n_dir)
     sn = np.empty(n_dir)
@@ -112,13 +133,15 @@ def _nu_kernel(pos, targets, verts, order, az_sorted, d_min, frame, hit, t_az, w
         # angular window: a vertex at distance s along the segment matters within reach * r1(s) of it, and
         # r1(s) / s = sqrt(lambda (L - s) / (s L)) is largest at the nearest vertex
         s0 = min(max(d_min[b], 1e-3), length)
-        half = 1.25 * reach * np.sqrt(wavelength * max(length - s0, 0.0) / (s0 * length)) + 1e-6  # 25 %: sin < angle
-        half = min(half / max(hn, 1e-3), np.pi)  # in azimuth: wider for steep segments
+        half_el = 1.1 * reach * np.sqrt(wavelength * max(length - s0, 0.0) / (s0 * length)) + 1e-6  # 10 %: sin < angle
+        half = min(half_el / max(hn, 1e-3), np.pi)  # in azimuth: wider for steep segments
         lo = np.searchsorted(az_sorted[b], t_az[i] - half)
         hi = np.searchsorted(az_sorted[b], t_az[i] + half)
         best = 1e300  # clear: smallest normalised distance^2
-        sup = np.zeros(n_dir)  # blocked: reach of the body along each direction
+        sup = np.full(n_dir, -1.0)  # blocked: reach of the body along each direction (-1: no vertex in the window)
         for q in range(lo, hi):
+            if abs(el_sorted[b, q] - t_el[i]) > half_el:
+                continue
             v = order[b, q]
             dx, dy, dz = verts[b, v, 0] - pos[0], verts[b, v, 1] - pos[1], verts[b, v, 2] - pos[2]
             s = dx * ux + dy * uy + dz * uz
@@ -131,14 +154,15 @@ def _nu_kernel(pos, targets, verts, order, az_sorted, d_min, frame, hit, t_az, w
             if hit[i]:
                 for j in range(n_dir):
                     along = x * cs[j] + y * sn[j]
-                    if along > sup[j] and abs(y * cs[j] - x * sn[j]) < STRIP:
+                    if along >= 0.0 and along > sup[j] and abs(y * cs[j] - x * sn[j]) < STRIP:
                         sup[j] = along
             else:
                 best = min(best, x * x + y * y)
         if hit[i]:
-            h = sup[0]
-            for j in range(1, n_dir):
-                h = min(h, sup[j])
+            # no outline vertex along a direction within the window: the body reaches past the cap there
+            h = r_cap
+            for j in range(n_dir):
+                h = min(h, sup[j] if sup[j] >= 0.0 else r_cap)
             out[i] = min(np.sqrt(2.0) * h, NU_MAX)
         else:
             out[i] = -np.sqrt(2.0) * np.sqrt(best) if best < 1e300 else NU_CLEAR - 1.0
