@@ -1,8 +1,6 @@
 """Consistent surfaces (issue 37 part 3): the link's polarisation in the wall, floor and PO reflections, one
 Kirchhoff roughness per wall for the clutter and the body's bounces, and the compiled kernels pinned to the
 numpy reference for both polarisations and rough surfaces."""
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
@@ -138,8 +136,8 @@ def test_horizontal_floor_reflection_is_r_te_and_pec_gives_minus_one():
 # ---------------------------------------------------------------------------------------------- roughness
 def test_rough_image_path_is_the_kirchhoff_factor_at_normal_and_oblique_incidence():
     """A wall of rms height 1 mm at 24.125 GHz scales a specular reflection by exp(-(4 pi sigma cos / lambda)^2 / 2):
-    at normal incidence (4 pi 1e-3 / 0.012427)^2 = 1.0226, factor 0.5997 (to 4 digits) (-4.44 dB); at 60 deg (cos 0.5) 0.8800
-    (-1.11 dB). Exact (same formula, rounding only): 1e-12."""
+    at normal incidence (4 pi 1e-3 / 0.012427)^2 = 1.0226, factor 0.5997 (-4.44 dB); at 60 deg (cos 0.5) 0.8800
+    (-1.11 dB). The hand values have 4 digits: 5e-5; the phase is untouched (1e-12)."""
     lam = C0 / 24.125e9
     eta = concrete(24.125e9)
     for cos_i, want in ((1.0, 0.5997), (0.5, 0.8800)):
@@ -179,7 +177,10 @@ def test_a_rough_patch_splits_its_power_between_diffuse_and_po_as_the_image_fact
     rough = SurfaceMaterial(eta=eta, roughness_m=1e-3)
     smooth = SurfaceMaterial(eta=eta, roughness_m=0.0)
     full = SurfaceMaterial(eta=eta, scattering_coefficient=1.0)
-    po = lambda m: facet_gains(m, lam, c, n, area, corners, tx, tx, True) - facet_gains(m, lam, c, n, area, corners, tx, tx, False)  # noqa: E731
+    def po(m):
+        return (facet_gains(m, lam, c, n, area, corners, tx, tx, True)
+                - facet_gains(m, lam, c, n, area, corners, tx, tx, False))
+
     rho = kirchhoff_specular(2.0, 1e-3, lam)
     assert abs(po(rough)[0]) == pytest.approx(rho * abs(po(smooth)[0]), rel=1e-12)
     s = kirchhoff_scattering(1.0, 1e-3, lam)
@@ -202,7 +203,8 @@ def test_scene_walls_and_clutter_patches_share_one_roughness_per_wall():
     names = [name for name, _, _ in scene.static_meshes]
     by_shape = {names[k]: set(p.roughness[p.shape == k]) for k in np.unique(p.shape)}
     assert by_shape["floor"] == {3e-3} and by_shape["wall_xp"] == {0.0} and by_shape["wall_yn"] == {1e-3}
-    assert scene.material("floor").roughness_m == 3e-3 == scene.walls[[w.name for w in scene.walls].index("floor")].material.roughness_m
+    floor = next(w for w in scene.walls if w.name == "floor")
+    assert scene.material("floor").roughness_m == 3e-3 == floor.material.roughness_m
     with pytest.raises(InputError, match="roughness_m"):
         RTScene("room", f, v + [0, 0, 1.0], 24.125e9, sionna=False, roughness_m=-1.0)
 

@@ -179,7 +179,8 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
         n_slots = 1 if body_vertices is None else min(len(verts), caster.batch)
         open_ = [_static_free(caster, pos, patches, *r, n_slots) for pos, r in zip(antennas, rays)]
         if body_vertices is None:  # the degenerate stand-in hides nothing: the static answer of cell 0
-            free = np.broadcast_to(np.stack([o[0] for o in open_])[:, None], (len(antennas), len(trace_idx), k_n))
+            static = np.stack([o[0] for o in open_]).astype(float)
+            free = np.broadcast_to(static[:, None], (len(antennas), len(trace_idx), k_n))
         else:
             wavelength = wf.wavelength
             # a segment passing the body's box farther than the clearance of nu = -0.78 (plus a margin far above

@@ -18,9 +18,11 @@ scaled by the Fresnel radius at its own distance along the segment (so a vertex 
 zone is thin, counts for less): a clear segment (the ray cast found no hit) takes the nearest one's
 clearance; a blocked one the shortest way out of the body, the least, over `N_DIRECTIONS` directions across
 the segment, of how far the silhouette vertices within a strip of half-width `STRIP` (in r1) along that
-direction reach (the outer outline: an arm's own edge in front of the trunk does not end the shadow). nu is capped at `NU_MAX`: deeper shadows
-take J(NU_MAX) = 22.6 dB, far below anything the MTI leaves of the clutter (the binary shadow it replaced was
--inf dB there); the cap bounds the vertices a blocked segment must visit (its window grows with NU_MAX^2).
+direction reach (the outer outline: an arm's own edge in front of the trunk does not end the shadow; no
+outline vertex within reach along a direction counts as the cap). nu is capped at `NU_MAX`: deeper shadows take
+J(NU_MAX) = 22.6 dB, far below anything the MTI leaves of the clutter (the binary shadow it replaced was -inf
+dB there); the cap bounds the vertices a blocked segment must visit (its window grows with NU_MAX^2). Cost on
+the 5 s bench walk (two radars, 2k shadow mesh): ~70k segments near the body, 0.26 s of CPU over both cores.
 """
 from __future__ import annotations
 

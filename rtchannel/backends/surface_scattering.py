@@ -60,7 +60,7 @@ from processing.radar.propagation import FOUR_PI_1_5, path_amplitude  # noqa: F4
 from rtchannel.backends import facet_kernels
 from processing.errors import InputError
 # the one material model lives with the scene (walls, skin); its old home keeps the name importable
-from rtchannel.scene.material import SurfaceMaterial, kirchhoff_specular  # noqa: F401
+from rtchannel.scene.material import SurfaceMaterial  # noqa: F401
 
 
 def pol_index(polarization: str) -> int:
@@ -245,7 +245,8 @@ def triangle_phase_integral(corners: np.ndarray, w: np.ndarray) -> np.ndarray:
     return 2 * area * _dd2_exp(z)
 
 
-def diffuse_sqrt_rcs(mat: SurfaceMaterial, k_i, k_s, normal, area, gamma, wavelength: float | None = None) -> np.ndarray:
+def diffuse_sqrt_rcs(mat: SurfaceMaterial, k_i, k_s, normal, area, gamma,
+                     wavelength: float | None = None) -> np.ndarray:
     """Real sqrt(sigma_d) [m] of surface elements under Sionna's diffuse model:
     sigma_d = 4 pi S^2 Gamma^2 (1 - K_x) f_s cos(theta_i) dA, S at the incidence for a rough material
     (`SurfaceMaterial.scattering_at`; `wavelength` [m] needed then)."""
