@@ -1,7 +1,8 @@
 """The clutter's static work is reused exactly (issue 26): its patch gains, delays and cells per scene and radar,
-the static shadows per ray-caster cell and antenna, and body rays only where a ray passes the body's box give
-the path sets of the brute-force formulation (every ray cast against walls and body at every traced frame);
-the caches follow a moved antenna, another seed or another radar, and the Mitsuba route agrees."""
+the static shadows per ray-caster cell and antenna, and body rays only where a ray passes the body's box (widened
+by the knife-edge's reach, issue 37) give the path sets of the brute-force formulation (every ray cast against
+walls and body at every traced frame, every statically free segment's knife-edge factor evaluated); the caches
+follow a moved antenna, another seed or another radar, and the Mitsuba route agrees."""
 import numpy as np
 import pytest
 from scipy import sparse
@@ -18,7 +19,10 @@ from rtchannel.scene.rt_scene import get_scene
 
 
 def _reference(rt, radar, times, verts=None, faces=None, trace_idx=None, seed=0, batch=16):
-    """clutter_paths as first written: every antenna -> patch ray cast with the body at each traced frame."""
+    """clutter_paths as first written: every antenna -> patch ray cast with the body at each traced frame, and
+    every segment free of static geometry given the body's knife-edge factor."""
+    from rtchannel.backends.knife_edge import segment_amplitudes
+
     wf = radar.waveform
     patches = clutter.scene_patches(rt, wf.carrier_hz, clutter.patch_size_m(wf.range_resolution))
     f_n, k_n = len(times), len(patches.areas)
@@ -28,17 +32,27 @@ def _reference(rt, radar, times, verts=None, faces=None, trace_idx=None, seed=0,
     v = np.broadcast_to(patches.centroids[0], (1, 3, 3)).copy() if verts is None else verts
     fc = np.array([[0, 1, 2]]) if faces is None else faces
     caster = visibility.caster_for(rt, fc, v, antennas, batch)
-    free = np.ones((len(antennas), len(v), k_n), bool)
+    free = np.ones((len(antennas), len(v), k_n))
     for s0 in range(0, len(v), batch):
         chunk = v[s0:s0 + batch]
-        caster.load(chunk)
         cells = np.repeat(np.arange(len(chunk)), k_n)
         for a, pos in enumerate(antennas):
             d = patches.centroids - pos
             dist = np.linalg.norm(d, axis=1)
-            hit = caster.occluded_cells(np.broadcast_to(pos, (len(cells), 3)), np.tile(d / dist[:, None], (len(chunk), 1)),
-                                        np.tile(dist - visibility._STOP, len(chunk)), cells)
-            free[a, s0:s0 + len(chunk)] = ~hit.reshape(len(chunk), k_n)
+            rays = (np.broadcast_to(pos, (len(cells), 3)), np.tile(d / dist[:, None], (len(chunk), 1)),
+                    np.tile(dist - visibility._STOP, len(chunk)), cells)
+            caster.clear()
+            static = ~caster.occluded_cells(*rays).reshape(len(chunk), k_n)
+            caster.load(chunk)
+            hit = caster.occluded_cells(*rays).reshape(len(chunk), k_n)
+            if verts is None:
+                free[a, s0:s0 + len(chunk)] = ~hit
+                continue
+            b, k = np.nonzero(static)
+            amp = np.zeros((len(chunk), k_n))
+            amp[b, k] = segment_amplitudes(pos, patches.centroids[k], chunk, b, hit[b, k], radar.waveform.wavelength,
+                                           fc)
+            free[a, s0:s0 + len(chunk)] = amp
     if verts is None:
         free = np.broadcast_to(free[:, :1], (len(antennas), len(trace_idx), k_n))
     index = {tuple(p): i for i, p in enumerate(antennas)}
@@ -46,7 +60,7 @@ def _reference(rt, radar, times, verts=None, faces=None, trace_idx=None, seed=0,
     hi = max_range(wf, radar.dsp) + 2 * wf.range_resolution
     out = {}
     for lk in radar.links:
-        vis = (free[index[tuple(lk.tx_pos)]] & free[index[tuple(lk.rx_pos)]]).astype(float)
+        vis = free[index[tuple(lk.tx_pos)]] * free[index[tuple(lk.rx_pos)]]
         if len(trace_idx) != f_n:
             j = np.clip(np.searchsorted(trace_idx, np.arange(f_n), side="right") - 1, 0, max(len(trace_idx) - 2, 0))
             j1 = np.minimum(j + 1, len(trace_idx) - 1)

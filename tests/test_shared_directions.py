@@ -36,6 +36,19 @@ def test_shared_backend_equals_separate_runs(short_walk, backend, options):
         assert res.config["radar"] == alone.config["radar"] and res.config["traced_with_radars"] == 3
 
 
+def test_radars_of_different_polarisations_share_one_facets_run(short_walk):
+    """A vertically and a horizontally polarised kit (the polarisation is an antenna property, carried per link
+    through `union_radar`) traced together equal their separate runs, and differ from each other (the floor
+    and wall bounces and the skin's Gamma depend on it). Tolerance as above."""
+    v = RadarConfig.seed(direction=3)
+    h = v.model_copy(update={"antenna": v.antenna.model_copy(update={"polarization": "H"})})
+    together = simulate_radars(short_walk, [v, h], "facets", noise_seeds=[3, 3], lod="2k")  # same noise
+    for r, seed, res in zip((v, h), (3, 3), together):
+        _same(res, simulate(short_walk, r, "facets", noise_seed=seed, lod="2k"), 1e-6)
+    pv, ph = (together[i].signatures["radar1"].p_vt for i in range(2))
+    assert np.abs(np.asarray(pv) - np.asarray(ph)).max() > 1e-3
+
+
 def test_union_radar_keeps_each_links_antennas_and_refuses_mixed_waveforms():
     from processing.radar.waveform import Waveform
 

@@ -166,3 +166,24 @@ def test_default_horns_change_power_as_in_the_points_backend():
     # radar 2: the walk crosses its beam, the change grows by > 5 dB (sionna and points alike)
     ds2 = change_db(s_h["radar2"], s_i["radar2"])
     assert ds2[-1] - ds2[0] > 5.0
+
+
+def test_polarisation_goes_to_the_arrays_and_splits_the_solver_calls(scene):
+    """Sionna holds one array per scene: a "V" and an "H" link are two groups; an "H" array's pattern has
+    C_theta = 0 and |C_phi| = sqrt(G) (slant angle pi/2), for Sionna's iso element and a registered horn."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from rtchannel.backends.sionna_antennas import link_groups
+
+    h_horn = HORN.model_copy(update={"polarization": "H"})
+    radar = RadarConfig(links=[Link(name="v", tx=TX), Link(name="h", tx=TX, tx_antenna=h_horn, rx_antenna=h_horn)],
+                        antenna=HORN)
+    groups = link_groups(radar, radar.links)
+    assert [[lk.name for lk in g] for g in groups] == [["v"], ["h"]]
+    for ant, gain_db in ((Isotropic(polarization="H"), 0.0), (h_horn, 16.0)):
+        r = RadarConfig(links=[Link(name="h", tx=TX)], antenna=ant)
+        place_antennas(scene, r.links, r)
+        c_theta, c_phi = scene.sionna_scene.tx_array.antenna_pattern.patterns[0](mi.Float(np.pi / 2), mi.Float(0.0))
+        assert float(dr.abs(c_theta)[0]) < 1e-6
+        assert float(dr.abs(c_phi)[0]) == pytest.approx(10 ** (gain_db / 20), rel=1e-4)

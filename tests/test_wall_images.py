@@ -210,15 +210,19 @@ def test_floor_double_bounce_is_the_image_geometry_times_gamma_squared(rx):
     # Gain: the free-space path tx' -> facet -> rx' (same facet, phase and PO term) times the floor's
     # reflection at both points. A vertically polarised wave meets a horizontal floor in a vertical plane of
     # incidence, so it is pure TM: co-polar coefficient -r_tm, conjugated (synthesiser convention), at the
-    # incidence cosines (z_antenna + z_c) / |c - antenna'|.
+    # incidence cosines (z_antenna + z_c) / |c - antenna'|, times the floor's Kirchhoff roughness factor
+    # exp(-(4 pi sigma_h cos / lambda)^2 / 2) at each (the same roughness its clutter scatters with).
     free = facet_paths(m, RadarConfig(links=[Link(name="r", tx=tuple(tx_i), rx=tuple(rx_i))], antenna=Isotropic()),
                        scene="free_space", lod=LOD, walls=False, trace_fps=None, min_relative_gain_db=None, clutter=False)["r"]
     g_free = dict(zip(free.ids, free.gains[0]))
     both = np.array([g_free.get(i, 0) != 0 for i in f])
     assert both.mean() > 0.9  # the free-space run misses only facets whose floor leg the body blocks
     eta, thick, lam = complex(floor.relative_permittivity), floor.thickness, radar.waveform.wavelength
-    gamma = [np.conj(-slab_reflection((np.asarray(a)[2] + cent[f[both], 2]) / d, eta, thick, lam)[1])
-             for a, d in ((tx, d_i[both]), (rx, d_r[both]))]
+    from rtchannel.scene.material import kirchhoff_specular
+
+    cosines = [(np.asarray(a)[2] + cent[f[both], 2]) / d for a, d in ((tx, d_i[both]), (rx, d_r[both]))]
+    gamma = [np.conj(-slab_reflection(c, eta, thick, lam)[1]) * kirchhoff_specular(2 * c, floor.roughness_m, lam)
+             for c in cosines]
     expected = np.array([g_free[i] for i in f[both]]) * gamma[0] * gamma[1]
     np.testing.assert_allclose(ps.gains[0, cols[both]], expected, rtol=1e-9)
     assert np.all(np.abs(gamma[0]) < 1) and np.ptp(np.abs(gamma[0])) > 0  # a real, angle-dependent loss
@@ -270,6 +274,9 @@ def test_compiled_wall_factor_matches_the_reference_maths(eta, thickness):
     k /= np.linalg.norm(k, axis=1, keepdims=True)
     cos_w = np.abs(k @ w.normal)
     e = None if eta is None else complex(eta)
-    ref = np.conj(co_polar_reflection(k, np.broadcast_to(w.normal, k.shape),
-                                      *slab_reflection(cos_w, e, thickness or None, 0.0124)))
+    from rtchannel.scene.material import kirchhoff_specular
+
+    rough = kirchhoff_specular(2 * cos_w, w.roughness_m, 0.0124)  # the default 1 mm rms wall
+    ref = rough * np.conj(co_polar_reflection(k, np.broadcast_to(w.normal, k.shape),
+                                              *slab_reflection(cos_w, e, thickness or None, 0.0124)))
     np.testing.assert_allclose(wall_factor(w, cos_w, k, 0.0124), ref, rtol=0, atol=1e-14)  # |Gamma| <= 1

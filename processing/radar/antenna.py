@@ -1,4 +1,4 @@
-"""Antenna power patterns (scalar, polarisation-neutral) and their orientation in the room.
+"""Antenna power patterns (scalar) with a linear polarisation, and their orientation in the room.
 
 Scale: backends give path coefficients a with |a|^2 = P_r / P_t for isotropic unit-gain antennas. A real
 link multiplies each path by the antennas' amplitude factors,
@@ -33,6 +33,13 @@ Kraus's G ~ 41253 eta / (HPBW_az HPBW_el) [deg^2] (`kraus_gain_dbi`) and, for a 
 without floor, D = 16 ln2 / (HPBW_az HPBW_el) [rad^2] = 36410 / (HPBW_az HPBW_el) [deg^2].
 
 A target at the antenna position has no direction; it is taken to lie on boresight (finite, never NaN).
+
+Polarisation (``polarization``, every antenna): "V" (vertical, the default) or "H" (horizontal), Sionna RT's
+spelling. The patterns above are power patterns, the same for both; the polarisation decides how walls, the
+floor and surfaces reflect the wave (`rtchannel.backends.surface_scattering`). The field of a "V" antenna is
+along theta-hat, of an "H" antenna along phi-hat, taken about the world z axis in the mesh backends (exact
+for an untilted antenna; Sionna RT takes them about the tilted local z', a difference of order the tilt).
+A link is modelled co-polarised: both of its antennas must have the same polarisation.
 """
 from __future__ import annotations
 
@@ -42,13 +49,14 @@ from types import SimpleNamespace
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
 
 from processing.errors import InputError
 
 Vec3 = tuple[float, float, float]
 _TINY = 1e-30  # below this squared sine a direction counts as on the boresight axis (float32-safe)
 _LN2 = math.log(2.0)
+POLARIZATIONS = ("V", "H")  # linear polarisations, Sionna RT's spelling: vertical (theta-hat), horizontal (phi-hat)
 
 NUMPY_OPS = SimpleNamespace(sin=np.sin, cos=np.cos, exp=np.exp, sqrt=np.sqrt, arctan2=np.arctan2,
                             maximum=np.maximum, power=np.power, where=np.where)
@@ -74,6 +82,15 @@ class _Antenna(BaseModel):
                                 "boresight/look_at [deg], in the vertical plane through it (negative: uptilt). "
                                 "Room radars are tilted by hand, typically a few to 20 deg down from a "
                                 "tripod; +-60 bounds what keeps a person in a forward beam")
+    polarization: str = Field("V", description="linear polarisation: 'V' (vertical, E along theta-hat) or 'H' "
+                              "(horizontal, E along phi-hat); kits rarely publish it, a Yagi mounted flat is H")
+
+    @field_validator("polarization", mode="before")
+    @classmethod
+    def _check_polarization(cls, v):
+        if v not in POLARIZATIONS:
+            raise InputError(f"antenna polarization must be 'V' (vertical) or 'H' (horizontal), got {v!r}")
+        return v
 
     @model_validator(mode="after")
     def _check_orientation(self):
@@ -238,7 +255,7 @@ _TABULATED = {
 
 def _directivity_params(spec) -> tuple[str, tuple]:
     """The key of a pattern's shape: (kind, sorted shape parameters without orientation and peak gain)."""
-    orientation = {"boresight", "look_at", "up", "downtilt_deg"}
+    orientation = {"boresight", "look_at", "up", "downtilt_deg", "polarization"}  # none changes the power pattern
     return spec.kind, tuple(sorted(spec.model_dump(exclude=orientation | {"peak_gain_dbi"}).items()))
 
 
@@ -316,6 +333,21 @@ def gain(spec, position, targets) -> np.ndarray:
     u = local_directions(spec, position, targets)
     g0 = 10.0 ** (peak_gain_dbi(spec) / 10.0)
     return np.sqrt(g0 * _normalised(spec, u[..., 0], u[..., 1], u[..., 2], NUMPY_OPS))
+
+
+def polarization(spec) -> str:
+    """Linear polarisation "V" or "H" of an antenna spec; None (an isotropic unit-gain antenna) is "V"."""
+    return "V" if spec is None else spec.polarization
+
+
+def link_polarization(tx_spec, rx_spec) -> str:
+    """The polarisation of a co-polarised link; InputError when its two antennas differ (cross-polarised
+    links are not modelled: every reflection is projected on the link's one polarisation)."""
+    p_tx, p_rx = polarization(tx_spec), polarization(rx_spec)
+    if p_tx != p_rx:
+        raise InputError(f"a link's transmit ({p_tx}) and receive ({p_rx}) antennas must have the same "
+                         "polarization (cross-polarised links are not modelled)")
+    return p_tx
 
 
 def link_gain(tx_spec, tx_position, rx_spec, rx_position, tx_targets, rx_targets=None) -> np.ndarray:

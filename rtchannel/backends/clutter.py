@@ -7,11 +7,14 @@ real recordings), and the body shadows part of the room frame by frame (a moving
 The scene's static triangles are cut into patches no larger than half a range bin (`patch_size_m`), so the
 clutter spreads over the range bins it occupies. Each patch is a persistent path antenna -> patch ->
 antenna with the same surface model as the body's facets (`surface_scattering.facet_gains`): the diffuse
-Lambertian term with the wall's roughness (`WALL_ROUGHNESS_M`, `rtchannel.scene.skin.scattering_coefficient`,
-a fixed random phase per patch) and the physical-optics term, whose patches add up coherently to the
-wall's specular return. A patch counts only when the segments antenna -> patch are free of static geometry
-and of the body; the body's shadow is evaluated at the backend's traced frames (the 2k body) and faded
-linearly between them. Antenna patterns apply as for every path.
+Lambertian term with the wall's own roughness (`Wall.roughness_m`, default `WALL_ROUGHNESS_M`: S from the
+Kirchhoff model at each patch's incidence, `rtchannel.scene.material`; a fixed random phase per patch) and
+the physical-optics term scaled by the same roughness's specular factor, whose patches add up coherently to
+the wall's specular return; the body's wall and floor bounces use that same factor (`wall_factor`). The
+link's polarisation ("V" or "H", its antennas') sets the reflection coefficients. A patch counts only when
+the segments antenna -> patch are free of static geometry; the body shadows them partially, by single
+knife-edge diffraction (`knife_edge`: 1 clear, 0.5 grazing, 22.6 dB deep), evaluated at the backend's traced
+frames (the 2k body) and faded linearly between them. Antenna patterns apply as for every path.
 
 A reduced set, not every triangle of a detailed scene: patches finer than half a range bin add nothing the
 DSP can resolve, and the patches of one delay cell (1/16 of a range bin) are merged into one path
@@ -31,10 +34,8 @@ from processing.dsp.fast_time import max_range
 from processing.pathset import PathSet
 from processing.radar.propagation import bistatic_delay
 from processing.radar.waveform import C0
-
-# rms height of a plastered or concrete wall finish (honest range 0.3-3 mm: float-finished concrete to rough
-# plaster): with the Kirchhoff model it gives walls S = 0.80 at 24 GHz and 0.23 at 5.8 GHz
-WALL_ROUGHNESS_M = 1e-3
+from rtchannel.backends.knife_edge import box_margin_m, segment_amplitudes
+from rtchannel.scene.material import WALL_ROUGHNESS_M  # noqa: F401 - its old home; the default wall's rms height
 CLUTTER_ID_BASE = 1 << 40  # clutter path ids start here: never a facet id (facet + faces x kind)
 CELLS_PER_RANGE_BIN = 16  # delay cells of the merged clutter paths per range bin c / 2B
 MAX_PATCHES = 200_000  # bounds memory for very large scenes (a 8 m x 8 m room at 0.19 m is ~12k patches)
@@ -43,7 +44,7 @@ MAX_PATCHES = 200_000  # bounds memory for very large scenes (a 8 m x 8 m room a
 @dataclass(frozen=True)
 class Patches:
     """Clutter patches: triangles [K, 3, 3] (m) with centroids, unit normals [K, 3], areas [K] (m^2), and per
-    patch its shape index and slab (complex permittivity, thickness [m]) at the carrier."""
+    patch its shape index, slab (complex permittivity, thickness [m]) at the carrier and rms roughness [m]."""
 
     corners: np.ndarray
     centroids: np.ndarray
@@ -52,6 +53,7 @@ class Patches:
     shape: np.ndarray
     eta: np.ndarray
     thickness: np.ndarray
+    roughness: np.ndarray | None = None
 
 
 def patch_size_m(range_resolution_m: float) -> float:
@@ -85,11 +87,12 @@ def scene_patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
 
 
 def _patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
-    corners, shape, eta, thick = [], [], [], []
+    corners, shape, eta, thick, rough = [], [], [], [], []
     w = 2 * math.pi * frequency_hz
-    for k, (_, v, f, slab) in enumerate(rt_scene._static):  # noqa: SLF001 - the scene's static meshes
+    for k, (name, v, f, slab) in enumerate(rt_scene._static):  # noqa: SLF001 - the scene's static meshes
         eps, sigma, thickness = (float(x) for x in slab)
         e = complex(eps, -sigma / (w * 8.8541878128e-12))
+        r = rt_scene.roughness(name) if hasattr(rt_scene, "roughness") else WALL_ROUGHNESS_M
         for tri in v[f]:
             edge = max(np.linalg.norm(tri[1] - tri[0]), np.linalg.norm(tri[2] - tri[1]), np.linalg.norm(tri[0] - tri[2]))
             sub = _subdivide(tri[0], tri[1], tri[2], max(1, int(math.ceil(edge / size_m))))
@@ -97,9 +100,11 @@ def _patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
             shape += [k] * len(sub)
             eta += [e] * len(sub)
             thick += [thickness] * len(sub)
+            rough += [r] * len(sub)
     if not corners:
         z = np.zeros((0, 3))
-        return Patches(np.zeros((0, 3, 3)), z, z, np.zeros(0), np.zeros(0, int), np.zeros(0, complex), np.zeros(0))
+        return Patches(np.zeros((0, 3, 3)), z, z, np.zeros(0), np.zeros(0, int), np.zeros(0, complex), np.zeros(0),
+                       np.zeros(0))
     c3 = np.concatenate(corners)
     if len(c3) > MAX_PATCHES:
         raise ValueError(f"the scene's static geometry makes {len(c3)} clutter patches (limit {MAX_PATCHES})")
@@ -108,30 +113,33 @@ def _patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
     keep = dbl > 1e-12
     c3, cr, dbl = c3[keep], cr[keep], dbl[keep]
     return Patches(c3, c3.mean(axis=1), cr / dbl[:, None], 0.5 * dbl, np.asarray(shape)[keep],
-                   np.asarray(eta)[keep], np.asarray(thick)[keep])
+                   np.asarray(eta)[keep], np.asarray(thick)[keep], np.asarray(rough, float)[keep])
 
 
 def clutter_gains(patches: Patches, tx, rx, wavelength: float, frequency_hz: float, seed: int | None = 0,
-                  roughness_m: float = WALL_ROUGHNESS_M) -> np.ndarray:
+                  roughness_m: float | None = None, polarization: str = "V") -> np.ndarray:
     """Complex path gains [K] (synthesiser convention, isotropic antennas) of the patches on tx -> patch -> rx
-    (m); patches whose front side does not face both antennas get 0 (two-sided: the normal is turned to
-    the transmitter)."""
+    (m) for a "V" or "H" polarised link; patches whose front side does not face both antennas get 0
+    (two-sided: the normal is turned to the transmitter). Each patch has its wall's material
+    (`SurfaceMaterial`: slab, and its rms roughness, or `roughness_m` [m] for all when given)."""
     from rtchannel.backends.surface_scattering import SurfaceMaterial, diffuse_phases, facet_gains
-    from rtchannel.scene.skin import scattering_coefficient
 
     tx, rx = np.asarray(tx, float), np.asarray(rx, float)
     n = patches.normals * np.sign(np.einsum("ij,ij->i", patches.normals, tx - patches.centroids))[:, None]
     faces_both = np.einsum("ij,ij->i", n, rx - patches.centroids) > 0
-    s = scattering_coefficient(frequency_hz, roughness_m)
+    rough = patches.roughness if patches.roughness is not None else np.full(len(patches.areas), WALL_ROUGHNESS_M)
+    if roughness_m is not None:
+        rough = np.full(len(patches.areas), float(roughness_m))
     phase = diffuse_phases(seed, len(patches.areas))
     out = np.zeros(len(patches.areas), complex)
-    for key in {(e, t) for e, t in zip(patches.eta, patches.thickness)}:
-        sel = np.flatnonzero((patches.eta == key[0]) & (patches.thickness == key[1]) & faces_both)
+    for key in {(e, t, r) for e, t, r in zip(patches.eta, patches.thickness, rough)}:
+        sel = np.flatnonzero((patches.eta == key[0]) & (patches.thickness == key[1]) & (rough == key[2]) & faces_both)
         if sel.size == 0:
             continue
-        mat = SurfaceMaterial(eta=key[0], scattering_coefficient=s, thickness=key[1] or None)
+        mat = SurfaceMaterial(eta=key[0], thickness=key[1] or None, roughness_m=float(key[2]))
         out[sel] = facet_gains(mat, wavelength, patches.centroids[sel], n[sel], patches.areas[sel],
-                               patches.corners[sel], tx, rx, True, None if phase is None else phase[sel])
+                               patches.corners[sel], tx, rx, True, None if phase is None else phase[sel],
+                               polarization)
     return out
 
 
@@ -146,8 +154,8 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
         times: frame times [F] (s) of the motion the clutter goes with.
         body_vertices, body_faces: the skinned body at `trace_idx` frames [T, V, 3] (m) and its triangles
             [F_b, 3], which shadow the clutter; None: an empty room.
-        trace_idx: frame indices [T] the body is given at (default every frame); shadows fade linearly
-            between them.
+        trace_idx: frame indices [T] the body is given at (default every frame); shadows (knife-edge field
+            factors, `knife_edge`) fade linearly between them.
         seed: seed of the patches' fixed diffuse phases.
     """
     from rtchannel.backends.visibility import caster_for
@@ -158,8 +166,9 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
     trace_idx = np.arange(f_n) if trace_idx is None else np.asarray(trace_idx)
     antennas = np.unique(np.concatenate([[lk.tx_pos for lk in radar.links], [lk.rx_pos for lk in radar.links]]),
                          axis=0)
-    # free[a, t, k]: segment antenna a -> patch k free of static geometry (and of the body at traced frame t)
-    free = np.ones((len(antennas), max(len(trace_idx), 1), k_n), bool)
+    # free[a, t, k]: field factor of segment antenna a -> patch k: 0 behind static geometry, else the body's
+    # knife-edge factor at traced frame t (1 clear)
+    free = np.ones((len(antennas), max(len(trace_idx), 1), k_n))
     if k_n:
         # an empty room: one degenerate (never hit) triangle on the first patch stands in for the body
         verts = (np.broadcast_to(patches.centroids[0], (1, 3, 3)).copy() if body_vertices is None
@@ -170,15 +179,20 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
         n_slots = 1 if body_vertices is None else min(len(verts), caster.batch)
         open_ = [_static_free(caster, pos, patches, *r, n_slots) for pos, r in zip(antennas, rays)]
         if body_vertices is None:  # the degenerate stand-in hides nothing: the static answer of cell 0
-            free = np.broadcast_to(np.stack([o[0] for o in open_])[:, None], (len(antennas), len(trace_idx), k_n))
+            static = np.stack([o[0] for o in open_]).astype(float)
+            free = np.broadcast_to(static[:, None], (len(antennas), len(trace_idx), k_n))
         else:
+            wavelength = wf.wavelength
+            # a segment passing the body's box farther than the clearance of nu = -0.78 (plus a margin far above
+            # float32 rounding) is neither blocked nor diffracted by it
+            margins = [_BOX_MARGIN + box_margin_m(wavelength, float(d.max(initial=0.0))) for _, d in rays]
             for s0 in range(0, len(verts), batch_frames):  # one BVH build per batch, only rays near the body
                 chunk = verts[s0:s0 + batch_frames]
                 slots = np.arange(len(chunk))
                 free[:, s0:s0 + len(chunk)] = [o[slots] for o in open_]
-                # a segment missing the body's box (plus a margin far above float32 rounding) cannot meet it
-                lo, hi = chunk.min(axis=1) - _BOX_MARGIN, chunk.max(axis=1) + _BOX_MARGIN
-                near = [_near_box(pos, patches.centroids, o[slots], lo, hi) for pos, o in zip(antennas, open_)]
+                lo, hi = chunk.min(axis=1), chunk.max(axis=1)
+                near = [_near_box(pos, patches.centroids, o[slots], lo - m, hi + m)
+                        for pos, o, m in zip(antennas, open_, margins)]
                 if not any(n.any() for n in near):
                     continue
                 caster.load(chunk)
@@ -186,7 +200,8 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
                     b, k = np.nonzero(n)
                     if b.size:
                         hit = caster.occluded_cells(np.broadcast_to(antennas[a], (b.size, 3)), dirs[k], dists[k], b)
-                        free[a, s0 + b, k] = ~hit
+                        free[a, s0 + b, k] = segment_amplitudes(antennas[a], patches.centroids[k], chunk, b, hit,
+                                                                wavelength, faces)
     index = {tuple(p): i for i, p in enumerate(antennas)}
     # interpolation from traced to all frames: linear fade, as the facets' own gains
     if len(trace_idx) == f_n:
@@ -202,7 +217,7 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
     out = {}
     for lk in radar.links:
         keep, inverse, cells, tau_c, w_k = _link_cells(rt_scene, radar, lk, patches, seed)
-        vis_t = free[index[tuple(lk.tx_pos)]] & free[index[tuple(lk.rx_pos)]]  # [T, K]
+        vis_t = free[index[tuple(lk.tx_pos)]] * free[index[tuple(lk.rx_pos)]]  # [T, K]: both legs' shadows
         gains = np.zeros((f_n, len(tau_c)), complex)
         _cell_sums(np.ascontiguousarray(vis_t[:, keep]), inverse, w_k, j, j1, w, fade, gains)
         out[lk.name] = PathSet(times=np.asarray(times, float), delays=np.broadcast_to(tau_c, (f_n, len(tau_c))).copy(),
@@ -280,14 +295,14 @@ def _near_box(pos, cent, open_, lo, hi):
 
 @numba.njit(parallel=True, cache=True, nogil=True)
 def _cell_sums(vis_t, inverse, w_k, j, j1, w, fade, out):
-    """out[f, c] = sum over kept patches i of cell c of vis(f, i) w_k[i], vis faded linearly between traced
-    frames j[f], j1[f] with weight w[f] (the sparse product's order and arithmetic)."""
+    """out[f, c] = sum over kept patches i of cell c of vis(f, i) w_k[i], vis (field factors) faded linearly
+    between traced frames j[f], j1[f] with weight w[f] (the sparse product's order and arithmetic)."""
     for f in numba.prange(out.shape[0]):
         for i in range(w_k.shape[0]):
             if fade:
                 v = (1 - w[f]) * vis_t[j[f], i] + w[f] * vis_t[j1[f], i]
             else:
-                v = 1.0 if vis_t[f, i] else 0.0
+                v = vis_t[f, i]
             if v != 0.0:
                 out[f, inverse[i]] += w_k[i] * v
 
@@ -310,7 +325,10 @@ def _link_cells(rt_scene, radar, lk, patches: Patches, seed):
     lo = max(radar.dsp.min_range_m - 2 * wf.range_resolution, 0.0)
     hi = max_range(wf, radar.dsp) + 2 * wf.range_resolution
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    g = clutter_gains(patches, lk.tx_pos, lk.rx_pos, wf.wavelength, wf.carrier_hz, seed)
+    from processing.radar.antenna import link_polarization
+
+    g = clutter_gains(patches, lk.tx_pos, lk.rx_pos, wf.wavelength, wf.carrier_hz, seed,
+                      polarization=link_polarization(*radar.antennas(lk)))
     g = g * radar.link_gain(lk, patches.centroids)
     tau_all = bistatic_delay(patches.centroids, lk.tx_pos, lk.rx_pos)
     keep = np.flatnonzero((g != 0) & (np.abs(tau_all * C0 / 2 - mid) <= half))  # within the processed ranges

@@ -38,18 +38,19 @@ def double_kind(w_tx: int, w_rx: int, n_walls: int) -> int:
 
 def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, material, wavelength, po,
                phases=None, direct_paths: bool = True, image_paths: bool = True, double=(),
-               antennas=None) -> list[dict]:
+               antennas=None, polarizations=None) -> list[dict]:
     """Per link {kind: (slot [N], facet [N], gain [N] complex)} of one batch of traced frames.
 
     vis: `visibility.BatchVisibility` of the batch; slot0: slot of its first frame; cent, norm [B, F, 3],
     area [B, F]: facet geometry; mesh: (vertices [B, V, 3], faces [F, 3]) of the batch (corners, with `po`);
     phases: diffuse phase factors [F] of this mesh or None; double: (tx wall, rx wall) index pairs of the
     double-bounce paths to form; antennas: per link (tx pattern, rx pattern) or None for isotropic antennas (see
-    `antenna_targets`; None for every link when not given)."""
+    `antenna_targets`; None for every link when not given); polarizations: per link "V" or "H" (default "V")."""
     n_w = len(walls)
     antennas = [None] * len(pairs) if antennas is None else antennas
+    polarizations = ["V"] * len(pairs) if polarizations is None else polarizations
     out = []
-    for (s_tx, s_rx), pattern in zip(pairs, antennas):
+    for (s_tx, s_rx), pattern, pol in zip(pairs, antennas, polarizations):
         tx, rx = sources[s_tx], sources[s_rx]
         mono = s_tx == s_rx
         # (kind, b, f, p_a, p_b, [(wall, (source, wall index), rows of vis.images[source, wall] or None for
@@ -89,7 +90,8 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
             twin = np.repeat([fam[6] for fam in fams], sizes)
             c = cent[b, f]
             ph = None if phases is None else phases[f]  # the facet's own surface phase on every path
-            g, g_rev, t = _gains_and_twins(material, wavelength, cent, norm, area, mesh, b, f, p_a, p_b, po, ph, twin)
+            g, g_rev, t = _gains_and_twins(material, wavelength, cent, norm, area, mesh, b, f, p_a, p_b, po, ph, twin,
+                                           pol)
             if pattern is not None:  # isotropic links skip this: their gains stay bit-identical
                 at_tx, at_rx = antenna_targets([(fam[0], k) for fam, k in zip(fams, sizes)], c, walls)
                 same = pattern[0] == pattern[1]  # monostatic: the same antenna at the same place
@@ -106,7 +108,7 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
                               antenna_gain(pattern[0], tx, at_rx[t]) * antenna_gain(pattern[1], rx, at_tx[t]))
             if t.size:  # monostatic: add the reverse path (same delay and visibility)
                 g[t] += g_rev
-            factors = _WallFactors(vis, cent, wavelength, fams)
+            factors = _WallFactors(vis, cent, wavelength, fams, pol)
             at = 0
             for (kind, bk, fk, _, _, via, _), k in zip(fams, sizes):
                 gk = g[at:at + k]
@@ -118,19 +120,22 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
     return out
 
 
-def _gains_and_twins(material, wavelength, cent, norm, area, mesh, b, f, p_a, p_b, po, ph, twin):
+def _gains_and_twins(material, wavelength, cent, norm, area, mesh, b, f, p_a, p_b, po, ph, twin, pol="V"):
     """(gains [N], reverse gains of the twins [T], twin rows [T]): `facet_gains_indexed` on p_a -> p_b, and
     on p_b -> p_a where `twin`; the Lambertian kernel evaluates both directions in one pass (same values)."""
     t = np.flatnonzero(twin)
     if material.pattern != "lambertian" or not t.size:
-        g = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b, f, p_a, p_b, po, ph)
+        g = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b, f, p_a, p_b, po, ph, pol)
         g_rev = None if not t.size else facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b[t], f[t],
-                                                             p_b[t], p_a[t], po, None if ph is None else ph[t])
+                                                             p_b[t], p_a[t], po, None if ph is None else ph[t], pol)
         return g, g_rev, t
     from rtchannel.backends.facet_kernels import indexed_gains
+    from rtchannel.backends.surface_scattering import pol_index
 
+    s_coef, rough = material.kernel_surface()
     d, s, d_rev, s_rev = indexed_gains(cent, norm, area, *mesh, b, f, p_a, p_b, material.eta, material.thickness or 0.0,
-                                       wavelength, material.scattering_coefficient, material.xpd_coefficient, po, twin)
+                                       wavelength, s_coef, material.xpd_coefficient, po, twin, pol=pol_index(pol),
+                                       rough=rough)
     g, g_rev = (d * ph, d_rev[t] * ph[t]) if ph is not None else (d.astype(complex), d_rev[t].astype(complex))
     return (g + s, g_rev + s_rev[t], t) if po else (g, g_rev, t)
 
@@ -141,8 +146,8 @@ class _WallFactors:
     path depends on its own facet and image only), and once for both ends of a monostatic same-wall
     double bounce (the same reflection point twice)."""
 
-    def __init__(self, vis, cent, wavelength, fams):
-        self.vis, self.cent, self.wavelength = vis, cent, wavelength
+    def __init__(self, vis, cent, wavelength, fams, pol="V"):
+        self.vis, self.cent, self.wavelength, self.pol = vis, cent, wavelength, pol
         self.full = {key for fam in fams for _, key, rows, _ in fam[5] if rows is None}
         self.cache = {}
 
@@ -158,7 +163,7 @@ class _WallFactors:
     def _factor(self, wall, cos_w, c, ant):
         q_dir = mirror(c, wall) - ant  # antenna -> mirrored centroid: via the reflection point
         q_dir /= np.linalg.norm(q_dir, axis=1, keepdims=True)
-        return wall_factor(wall, cos_w, q_dir, self.wavelength)
+        return wall_factor(wall, cos_w, q_dir, self.wavelength, self.pol)
 
 
 def antenna_targets(kinds_sizes, cent, walls) -> tuple[np.ndarray, np.ndarray]:

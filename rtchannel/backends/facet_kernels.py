@@ -1,7 +1,11 @@
 """Compiled (numba) kernels of the `facets` backend's surface maths: the same formulas as the numpy
 reference in `surface_scattering` (Lambertian diffuse term, physical-optics triangle integral, Fresnel/slab
-reflection, polarisation split), fused per element so that ~10^6 facet paths per second of motion cost
-~0.3 us each. Tests compare them with the reference (tests/test_rcs_facets.py)."""
+reflection, polarisation split, Kirchhoff roughness), fused per element so that ~10^6 facet paths per second
+of motion cost ~0.3 us each. Tests compare them with the reference (tests/test_rcs_facets.py).
+
+Every kernel takes the link's polarisation `pol` (0: "V", theta-hat; 1: "H", phi-hat) and the surface's rms
+height `rough` [m] (0: the material's fixed scattering coefficient s_coef, as Sionna's; > 0: S and the
+specular factor from the Kirchhoff model at each element's own angles, `surface_scattering.kirchhoff_specular`)."""
 from __future__ import annotations
 
 import numba
@@ -11,21 +15,23 @@ from processing.numba_math import sincos
 from processing.radar.propagation import FOUR_PI_1_5  # the radar equation's home (a numba global)
 
 
-def lambertian_po_gains(c, n, area, corners, p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po):
+def lambertian_po_gains(c, n, area, corners, p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po, pol=0, rough=0.0):
     """(diffuse [E] real, PO [E] complex or None) path gains of elements (centroids c, unit normals n
     [E, 3], areas [E], corners [E, 3, 3] used with po) on p_a -> c -> p_b ([E, 3]) for a Lambertian surface
     of permittivity eta (None: perfect conductor), slab thickness (0: half-space), scattering coefficient
-    s_coef and cross-polar fraction xpd; see `surface_scattering.facet_gains`."""
+    s_coef (or rms height rough [m] > 0), cross-polar fraction xpd and link polarisation pol (0 V, 1 H); see
+    `surface_scattering.facet_gains`."""
     e = len(c)
     corners = np.zeros((e, 3, 3)) if corners is None else corners
     # the elements as frame 0 of an indexed mesh: element i is facet i, its corners vertices 3i..3i+2
     return indexed_gains(np.asarray(c, float)[None], np.asarray(n, float)[None], np.asarray(area, float)[None],
                          np.asarray(corners, float).reshape(1, 3 * e, 3), np.arange(3 * e).reshape(e, 3),
-                         np.zeros(e, np.int64), np.arange(e), p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po)
+                         np.zeros(e, np.int64), np.arange(e), p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po,
+                         pol=pol, rough=rough)
 
 
 def indexed_gains(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, thickness, wavelength, s_coef, xpd, po,
-                  reverse=None):
+                  reverse=None, pol=0, rough=0.0):
     """`lambertian_po_gains` of elements given by index, without gathering them: element i is facet ef[i]
     of frame eb[i], with centroid cent[eb, ef], normal norm[eb, ef] ([B, F, 3]), area area[eb, ef] ([B, F])
     and corners verts[eb, faces[ef]] (verts [B, V, 3], faces [F, 3]); p_a, p_b [E, 3].
@@ -43,33 +49,36 @@ def indexed_gains(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, thickne
     ends = [np.ascontiguousarray(x, float) for x in (p_a, p_b)]
     kernel = _facets_parallel if e >= _PARALLEL_MIN else _facets_serial
     kernel(*arr, *idx, *ends, complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), float(s_coef),
-           float(xpd), po, diffuse, specular, rev, rev_d, rev_p)
+           float(xpd), po, diffuse, specular, rev, rev_d, rev_p, int(pol), float(rough))
     if reverse is not None:
         return diffuse, (specular if po else None), rev_d, (rev_p if po else None)
     return diffuse, (specular if po else None)
 
 
-def wall_factors(cos_w, k_in, normal, eta, thickness, wavelength) -> np.ndarray:
-    """conj(co-polar reflection coefficient) [N] (`surface_scattering.co_polar_reflection`) of a planar slab (normal [3], permittivity eta or None for a
-    perfect conductor, thickness 0 for a half-space) at incidence cosines cos_w [N] for incident
-    directions k_in [N, 3]; see `surface_scattering.wall_factor`."""
+def wall_factors(cos_w, k_in, normal, eta, thickness, wavelength, pol=0, rough=0.0) -> np.ndarray:
+    """conj(co-polar reflection coefficient) [N] (`surface_scattering.co_polar_reflection`) of a planar slab
+    (normal [3], permittivity eta or None for a perfect conductor, thickness 0 for a half-space) at incidence
+    cosines cos_w [N] for incident directions k_in [N, 3] and link polarisation pol (0 V, 1 H), times the
+    Kirchhoff specular factor of rms height rough [m]; see `surface_scattering.wall_factor`."""
     out = np.empty(len(cos_w), complex)
     pec = eta is None
     kernel = _walls_parallel if len(out) >= _PARALLEL_MIN else _walls_serial
     kernel(np.ascontiguousarray(cos_w, float), np.ascontiguousarray(k_in, float), np.asarray(normal, float),
-           complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), out)
+           complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), out, int(pol), float(rough))
     return out
 
 
 @numba.njit(cache=True, inline="always")
-def _te_fraction_one(kx, ky, kz, nx, ny, nz):
-    """`te_fraction` of one direction k and normal n: theta_hat ~ (k x z) x k against e_perp = k x n."""
+def _te_fraction_one(kx, ky, kz, nx, ny, nz, pol):
+    """`te_fraction` of one direction k and normal n: theta_hat ~ (k x z) x k against e_perp = k x n; the
+    horizontal polarisation (pol 1, phi-hat, the other transverse axis) carries the rest."""
     tx, ty, tz = -kx * kz, -ky * kz, kx * kx + ky * ky
     px, py, pz = ky * nz - kz * ny, kz * nx - kx * nz, kx * ny - ky * nx
     tn = tx * tx + ty * ty + tz * tz
     pn = px * px + py * py + pz * pz
     if tn > 1e-18 and pn > 1e-18:
-        return min((tx * px + ty * py + tz * pz) ** 2 / (tn * pn), 1.0)
+        c2 = min((tx * px + ty * py + tz * pz) ** 2 / (tn * pn), 1.0)
+        return 1.0 - c2 if pol == 1 else c2
     return 0.5  # normal incidence or vertical propagation: split equally
 
 
@@ -84,12 +93,32 @@ def _theta_hat_one(kx, ky, kz):
 
 
 @numba.njit(cache=True, inline="always")
-def _co_polar_one(kx, ky, kz, nx, ny, nz, r_te, r_tm):
+def _pol_hat_one(kx, ky, kz, pol):
+    """`surface_scattering.polarization_hat` of one unit direction: theta-hat (pol 0) or phi-hat = z x k
+    normalised (pol 1; y for vertical propagation)."""
+    if pol == 0:
+        return _theta_hat_one(kx, ky, kz)
+    h = np.sqrt(kx * kx + ky * ky)
+    if h > 1e-9:
+        return -ky / h, kx / h, 0.0
+    return 0.0, 1.0, 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def _kirchhoff_one(q, rough, wavelength):
+    """Kirchhoff specular factor exp(-(k rough q)^2 / 2) of rms height rough [m] for the phase-difference
+    cosine sum q = n . (u_in + u_out) (2 cos(theta) at specular incidence)."""
+    x = 2 * np.pi / wavelength * rough * q
+    return np.exp(-0.5 * x * x)
+
+
+@numba.njit(cache=True, inline="always")
+def _co_polar_one(kx, ky, kz, nx, ny, nz, r_te, r_tm, pol):
     """`surface_scattering.co_polar_reflection` of one unit incident direction k and unit normal n."""
     kn = kx * nx + ky * ny + kz * nz
     rx, ry, rz = kx - 2 * kn * nx, ky - 2 * kn * ny, kz - 2 * kn * nz
-    ix, iy, iz = _theta_hat_one(kx, ky, kz)
-    ox, oy, oz = _theta_hat_one(rx, ry, rz)
+    ix, iy, iz = _pol_hat_one(kx, ky, kz, pol)
+    ox, oy, oz = _pol_hat_one(rx, ry, rz, pol)
     px, py, pz = ky * nz - kz * ny, kz * nx - kx * nz, kx * ny - ky * nx
     pn = np.sqrt(px * px + py * py + pz * pz)
     if pn <= 1e-9:  # normal incidence: any e_perp across the ray
@@ -103,26 +132,28 @@ def _co_polar_one(kx, ky, kz, nx, ny, nz, r_te, r_tm):
 
 
 @numba.njit(cache=True, inline="always")
-def _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
+def _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out, pol, rough):
     kn = np.sqrt(k_in[e, 0] ** 2 + k_in[e, 1] ** 2 + k_in[e, 2] ** 2)
+    c = min(max(cos_w[e], 0.0), 1.0)
     if pec:
         r_te, r_tm = -1.0 + 0j, 1.0 + 0j
     else:
-        r_te, r_tm = _slab_one(min(max(cos_w[e], 0.0), 1.0), eta, thickness, wavelength)
-    out[e] = np.conj(_co_polar_one(k_in[e, 0] / kn, k_in[e, 1] / kn, k_in[e, 2] / kn,
-                                   normal[0], normal[1], normal[2], r_te, r_tm))
+        r_te, r_tm = _slab_one(c, eta, thickness, wavelength)
+    g = np.conj(_co_polar_one(k_in[e, 0] / kn, k_in[e, 1] / kn, k_in[e, 2] / kn,
+                              normal[0], normal[1], normal[2], r_te, r_tm, pol))
+    out[e] = g * _kirchhoff_one(2.0 * c, rough, wavelength) if rough > 0 else g
 
 
 @numba.njit(cache=True, nogil=True)
-def _walls_serial(cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
+def _walls_serial(cos_w, k_in, normal, eta, pec, thickness, wavelength, out, pol, rough):
     for e in range(cos_w.shape[0]):
-        _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out)
+        _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out, pol, rough)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _walls_parallel(cos_w, k_in, normal, eta, pec, thickness, wavelength, out):
+def _walls_parallel(cos_w, k_in, normal, eta, pec, thickness, wavelength, out, pol, rough):
     for e in numba.prange(cos_w.shape[0]):
-        _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out)
+        _wall_one(e, cos_w, k_in, normal, eta, pec, thickness, wavelength, out, pol, rough)
 
 
 @numba.njit(cache=True, inline="always")
@@ -176,15 +207,19 @@ def _dd2_cis(t0, t1, t2):
 
 
 @numba.njit(cache=True, inline="always")
-def _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area, scale, eta, pec, thickness, wavelength, s_coef, xpd):
+def _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area, scale, eta, pec, thickness, wavelength, s_coef, xpd, pol,
+                 rough):
     """(Lambertian diffuse amplitude, r_te, r_tm at the incidence angle) of one facet: incident direction k,
     scattered direction u, unit normal n, area [m^2], radar-equation factor `scale`."""
     cos_i = min(max(-(nx * kx + ny * ky + nz * kz), 0.0), 1.0)
     cos_s = min(max(nx * ux + ny * uy + nz * uz, 0.0), 1.0)
+    if rough > 0:  # S^2 = 1 - (specular factor)^2 at the incidence angle
+        sp = _kirchhoff_one(2.0 * cos_i, rough, wavelength)
+        s_coef = np.sqrt(max(1.0 - sp * sp, 0.0))
     gamma = 1.0
     r_te, r_tm = -1.0 + 0j, 1.0 + 0j
     if not pec:
-        c2 = _te_fraction_one(kx, ky, kz, nx, ny, nz)
+        c2 = _te_fraction_one(kx, ky, kz, nx, ny, nz, pol)
         r_te, r_tm = _slab_one(cos_i, eta, thickness, wavelength)
         gamma = np.sqrt(c2 * abs(r_te) ** 2 + (1 - c2) * abs(r_tm) ** 2)
     return scale * s_coef * gamma * np.sqrt(4.0 * (1.0 - xpd) * cos_s * cos_i * max(area, 0.0)), r_te, r_tm
@@ -192,7 +227,7 @@ def _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area, scale, eta, pec, thic
 
 @numba.njit(cache=True, inline="always")
 def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po,
-               out_d, out_p):
+               out_d, out_p, pol, rough):
     """Fused Lambertian `diffuse_sqrt_rcs` and (with po) `po_sqrt_rcs` x sqrt(1 - S^2), times the
     radar-equation amplitude, of element e (facet ef[e] of frame eb[e]) on p_a -> c -> p_b (same maths as
     `facet_gains`' numpy path)."""
@@ -209,7 +244,7 @@ def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, th
     nx, ny, nz = n[0], n[1], n[2]
     scale = wavelength / (FOUR_PI_1_5 * ra * rb)
     out_d[e], r_te, r_tm = _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area[b, f], scale, eta, pec, thickness,
-                                        wavelength, s_coef, xpd)
+                                        wavelength, s_coef, xpd, pol, rough)
     if not po:
         return ra, rb, kx, ky, kz, ux, uy, uz, 0.0, 1.0, r_te, r_tm, 0j
     hx, hy, hz = ux - kx, uy - ky, uz - kz  # u_tx + u_rx (facet -> antennas)
@@ -220,7 +255,7 @@ def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, th
         r_te, r_tm = _slab_one(cos_b, eta, thickness, wavelength)
     # else monostatic: the bisector is the incidence direction, r_te and r_tm are those at cos_i
     # the facet mirrors tx onto rx about the bisector (sign: a conducting plate at broadside gives +1)
-    rho = -_co_polar_one(kx, ky, kz, hx / h_len, hy / h_len, hz / h_len, r_te, r_tm)
+    rho = -_co_polar_one(kx, ky, kz, hx / h_len, hy / h_len, hz / h_len, r_te, r_tm, pol)
     # Triangle integral of exp(j w . (r - centroid)), w = -k (u_tx + u_rx): phases t_i at the corners.
     k = 2 * np.pi / wavelength
     v0, v1, v2 = verts[b, faces[f, 0]], verts[b, faces[f, 1]], verts[b, faces[f, 2]]
@@ -232,13 +267,23 @@ def _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, th
     bx, by, bz = v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]
     tri = 0.5 * np.sqrt((ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2 + (ax * by - ay * bx) ** 2)
     integral = 2 * tri * _dd2_cis(t0, t1, t2)
-    out_p[e] = (np.sqrt(1.0 - s_coef * s_coef) * scale * 1j * np.conj(rho) * (np.sqrt(4 * np.pi) / wavelength)
-                * max(0.5 * nh, 0.0) * integral)
+    out_p[e] = (_specular_one(nh, s_coef, rough, wavelength) * scale * 1j * np.conj(rho)
+                * (np.sqrt(4 * np.pi) / wavelength) * max(0.5 * nh, 0.0) * integral)
     return ra, rb, kx, ky, kz, ux, uy, uz, nh, h_len, r_te, r_tm, integral
 
 
 @numba.njit(cache=True, inline="always")
-def _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p):
+def _specular_one(nh, s_coef, rough, wavelength):
+    """Specular (PO) amplitude factor: sqrt(1 - S^2) of a fixed S, or the Kirchhoff factor of rms height rough
+    at the facet's own phase-difference cosine sum nh = n . (u_tx + u_rx)."""
+    if rough > 0:
+        return _kirchhoff_one(nh, rough, wavelength)
+    return np.sqrt(1.0 - s_coef * s_coef)
+
+
+@numba.njit(cache=True, inline="always")
+def _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, out_d, out_p,
+                 pol, rough):
     """`_facet_one` of element e on p_b -> c -> p_a from the forward pass's intermediates r: the reverse
     directions are the forward ones negated (exactly, in floating point), the bisector, the bistatic Fresnel
     coefficients and the triangle integral are the same, so only the incidence-dependent factors (Gamma,
@@ -253,40 +298,41 @@ def _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavele
     nx, ny, nz = n[0], n[1], n[2]
     scale = wavelength / (FOUR_PI_1_5 * ra * rb)
     out_d[e], r_te, r_tm = _diffuse_one(kx, ky, kz, ux, uy, uz, nx, ny, nz, area[b, f], scale, eta, pec, thickness,
-                                        wavelength, s_coef, xpd)
+                                        wavelength, s_coef, xpd, pol, rough)
     if not po:
         return
     hx, hy, hz = ux - kx, uy - ky, uz - kz
     if not pec and (p_a[e, 0] != p_b[e, 0] or p_a[e, 1] != p_b[e, 1] or p_a[e, 2] != p_b[e, 2]):
         r_te, r_tm = r_te_b, r_tm_b
-    rho = -_co_polar_one(kx, ky, kz, hx / h_len, hy / h_len, hz / h_len, r_te, r_tm)
-    out_p[e] = (np.sqrt(1.0 - s_coef * s_coef) * scale * 1j * np.conj(rho) * (np.sqrt(4 * np.pi) / wavelength)
-                * max(0.5 * nh, 0.0) * integral)
+    rho = -_co_polar_one(kx, ky, kz, hx / h_len, hy / h_len, hz / h_len, r_te, r_tm, pol)
+    out_p[e] = (_specular_one(nh, s_coef, rough, wavelength) * scale * 1j * np.conj(rho)
+                * (np.sqrt(4 * np.pi) / wavelength) * max(0.5 * nh, 0.0) * integral)
 
 
 @numba.njit(cache=True, inline="always")
 def _pair_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po,
-              out_d, out_p, rev, rev_d, rev_p):
+              out_d, out_p, rev, rev_d, rev_p, pol, rough):
     r = _facet_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                   po, out_d, out_p)
+                   po, out_d, out_p, pol, rough)
     if rev.shape[0] and rev[e]:
-        _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, rev_d, rev_p)
+        _reverse_one(e, r, norm, area, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd, po, rev_d, rev_p,
+                     pol, rough)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
 def _facets_parallel(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                     po, out_d, out_p, rev, rev_d, rev_p):
+                     po, out_d, out_p, rev, rev_d, rev_p, pol, rough):
     for e in numba.prange(eb.shape[0]):
         _pair_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                  po, out_d, out_p, rev, rev_d, rev_p)
+                  po, out_d, out_p, rev, rev_d, rev_p, pol, rough)
 
 
 @numba.njit(cache=True, nogil=True)
 def _facets_serial(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                   po, out_d, out_p, rev, rev_d, rev_p):
+                   po, out_d, out_p, rev, rev_d, rev_p, pol, rough):
     for e in range(eb.shape[0]):
         _pair_one(e, cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, pec, thickness, wavelength, s_coef, xpd,
-                  po, out_d, out_p, rev, rev_d, rev_p)
+                  po, out_d, out_p, rev, rev_d, rev_p, pol, rough)
 
 
 # Below this many elements a parallel launch costs more than it saves (~0.1-0.3 us per element against a

@@ -23,7 +23,9 @@ the default) sqrt(1 - S^2) times the exact physical-optics integral over the tri
 specular part that Sionna's model scales by sqrt(1 - S^2): with S = 0.5 it carries 75 % of the reflected
 power, so leaving it out underestimates the body (mean walk RCS about -8 instead of -3.1 dBsm, see
 `rcs.walk_body_rcs`). Image paths are multiplied by the wall's co-polar slab reflection coefficient at
-each reflection point.
+each reflection point, for the link's polarisation ("V" or "H", `LinkSpec.polarization`: both antennas'), and
+by the wall's Kirchhoff specular factor exp(-(4 pi sigma_h cos(theta) / lambda)^2 / 2) (`Wall.roughness_m`,
+the roughness its clutter scatters with, `rtchannel.scene.material`).
 
 Antennas (`LinkSpec.tx_antenna`, `rx_antenna`; `facet_paths` takes the radar's, `RadarConfig.antennas`):
 every path is multiplied by sqrt(G_tx(u_tx)) sqrt(G_rx(u_rx)) (`processing.radar.antenna.gain`), u the direction
@@ -95,6 +97,13 @@ class LinkSpec:
         """(tx, rx) patterns, or None when both are isotropic (no factor at all: bit-identical gains)."""
         kinds = {getattr(a, "kind", "isotropic") for a in (self.tx_antenna, self.rx_antenna)}
         return None if kinds == {"isotropic"} else (self.tx_antenna, self.rx_antenna)
+
+    @property
+    def polarization(self) -> str:
+        """The link's polarisation, "V" or "H" (its antennas', which must agree; None antennas are "V")."""
+        from processing.radar.antenna import link_polarization
+
+        return link_polarization(self.tx_antenna, self.rx_antenna)
 
 
 # Fast defaults (benchmarks/bench_facets.py; error cost in `rtchannel.analysis.speed_error`): visibility and gains
@@ -212,12 +221,13 @@ def mesh_paths(scene, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray
         meshes.append((np.asarray(v_c, float), np.asarray(f_c, np.int64), vel_c, False, True))
     double = double_bounce_pairs(double_bounce, walls)
     antennas = [link.antennas() for link in links]
+    pols = [link.polarization for link in links]
 
     def trace_mesh(mesh, mesh_clock):
         verts, fcs, vels, direct_paths, image_paths = mesh
         found = _trace(scene, verts, fcs, trace_idx, sources, pairs, walls if image_paths else [], material,
                        wavelength, po, batch_frames, direct_paths, mesh_clock, progress,
-                       diffuse_phases(seed, len(fcs)), double if image_paths else [], antennas)
+                       diffuse_phases(seed, len(fcs)), double if image_paths else [], antennas, pols)
         return found, verts, vels, fcs
 
     if len(meshes) == 1 or not _side_by_side():
@@ -276,7 +286,7 @@ def double_bounce_pairs(double_bounce: bool | str | None, walls) -> list[tuple[i
 
 
 def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, wavelength, po, batch_frames,
-           direct_paths, clock, progress, phases, double, antennas) -> list[dict]:
+           direct_paths, clock, progress, phases, double, antennas, pols=None) -> list[dict]:
     """Visibility and gains at the traced frames of one mesh, batch by batch (one BVH build each)."""
     from rtchannel.body.skinning import face_frames
 
@@ -293,7 +303,7 @@ def _trace(scene, vertices, faces, trace_idx, sources, pairs, walls, material, w
         clock("rays")
         batches.append(link_gains(vis, pairs, sources, walls, start, cent, normals, areas,
                                   (v, faces), material, wavelength, po, phases,
-                                  direct_paths, double=double, antennas=antennas))
+                                  direct_paths, double=double, antennas=antennas, polarizations=pols))
         clock("gains")
         if progress is not None:
             progress(start + len(frames))

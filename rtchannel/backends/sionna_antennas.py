@@ -4,14 +4,15 @@ Sionna RT evaluates an antenna pattern inside its field calculator: a registered
 callables ``(theta, phi) -> (C_theta, C_phi)`` in the device's local frame (x' boresight, z' up), and each
 Transmitter/Receiver turns that frame by its own (yaw, pitch, roll). `processing.radar.antenna` uses the same
 local frame, so a project pattern becomes a Sionna pattern by evaluating `local_power_gain` with Dr.Jit
-operations: vertical polarisation (Sionna's "V", slant angle 0, so C_phi = 0 exactly) with
-C_theta = sqrt(G). Then |a|^2 carries G_tx(u_tx) G_rx(u_rx) on top of the unit-gain scale, with u_tx the
+operations: the antenna's polarisation (`polarization`, Sionna's spelling: "V", slant angle 0, C_theta =
+sqrt(G) and C_phi = 0 exactly; "H", slant angle pi/2, C_phi = sqrt(G) and C_theta = 0) on the array
+(`PlanarArray(polarization=...)`, which hands it to the pattern factory). Then |a|^2 carries G_tx(u_tx) G_rx(u_rx) on top of the unit-gain scale, with u_tx the
 direction in which each path leaves the transmitter and u_rx the one from which it reaches the receiver
 (Sionna's first and last path segments: exact for every depth and for wall-bounce paths).
 
 Limits of Sionna RT 2.2: the scene holds ONE transmit and ONE receive array for all devices (orientations
-are per device). Links whose antennas differ in shape (not only in orientation) are therefore traced in
-separate solver calls, one per distinct (tx shape, rx shape); the seed's kit (one horn everywhere) and the
+are per device). Links whose antennas differ in shape or polarisation (not only in orientation) are therefore
+traced in separate solver calls, one per distinct (tx shape, rx shape, polarisation); the seed's kit (one horn everywhere) and the
 isotropic case need one call. Isotropic antennas keep Sionna's own "iso" pattern with orientation (0, 0, 0):
 bit for bit the unit-gain behaviour of the backend.
 """
@@ -23,7 +24,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from processing.radar.antenna import local_power_gain, sionna_orientation
+from processing.radar.antenna import link_polarization, local_power_gain, sionna_orientation
 from processing.errors import InputError
 
 _REGISTERED: set[str] = set()
@@ -34,7 +35,9 @@ def shape_key(spec) -> str:
     shape (kind, beamwidths, gain, floor...; orientation excluded, it belongs to each device)."""
     if spec.kind == "isotropic":
         return "iso"
-    shape = json.dumps(spec.model_dump(exclude={"boresight", "look_at", "up", "downtilt_deg"}), sort_keys=True)
+    # the polarisation is the array's (`place_antennas`), not the pattern's: one registered pattern serves both
+    shape = json.dumps(spec.model_dump(exclude={"boresight", "look_at", "up", "downtilt_deg", "polarization"}),
+                       sort_keys=True)
     return f"rtchannel_{spec.kind}_{hashlib.sha1(shape.encode()).hexdigest()[:12]}"
 
 
@@ -72,12 +75,13 @@ def register_pattern(spec) -> str:
 
 
 def link_groups(radar, links) -> list[list]:
-    """`links` grouped so that each group needs one transmit and one receive pattern shape (one
-    Sionna solver call per group), in first-seen order."""
-    groups: dict[tuple[str, str], list] = {}
+    """`links` grouped so that each group needs one transmit and one receive pattern shape and one
+    polarisation (one Sionna solver call per group), in first-seen order."""
+    groups: dict[tuple[str, str, str], list] = {}
     for link in links:
         tx, rx = radar.antennas(link) if radar is not None else (None, None)
-        key = (shape_key(tx) if tx is not None else "iso", shape_key(rx) if rx is not None else "iso")
+        key = (shape_key(tx) if tx is not None else "iso", shape_key(rx) if rx is not None else "iso",
+               link_polarization(tx, rx))
         groups.setdefault(key, []).append(link)
     return list(groups.values())
 
@@ -89,11 +93,11 @@ def _orientation(spec, position) -> tuple[float, float, float]:
 
 
 def place_antennas(scene, links, radar=None) -> tuple[dict[str, tuple[int, int]], np.ndarray]:
-    """Put one V-polarised transmitter per distinct (tx position, orientation) and one receiver per
-    distinct (rx position, orientation) of `links` into ``scene`` (an `RTScene`), with the scene's arrays
-    set to the links' antenna patterns (`radar.antennas(link)`; isotropic when `radar` is None).
+    """Put one transmitter per distinct (tx position, orientation) and one receiver per distinct (rx
+    position, orientation) of `links` into ``scene`` (an `RTScene`), with the scene's arrays set to the links'
+    antenna patterns and polarisation (`radar.antennas(link)`; isotropic "V" when `radar` is None).
 
-    All `links` must share one tx and one rx pattern shape (`link_groups`).
+    All `links` must share one tx and one rx pattern shape and one polarisation (`link_groups`).
 
     Returns ({link name: (source index, target index)}, all antenna positions [N, 3] (m)).
     """
@@ -101,16 +105,19 @@ def place_antennas(scene, links, radar=None) -> tuple[dict[str, tuple[int, int]]
     import sionna.rt as rt
 
     specs = [radar.antennas(lk) if radar is not None else (None, None) for lk in links]
-    names = {(shape_key(t) if t is not None else "iso", shape_key(r) if r is not None else "iso") for t, r in specs}
+    names = {(shape_key(t) if t is not None else "iso", shape_key(r) if r is not None else "iso",
+              link_polarization(t, r)) for t, r in specs}
     if len(names) != 1:
-        raise InputError(f"place_antennas: links need one tx and one rx pattern shape per call, got {sorted(names)}")
+        raise InputError(f"place_antennas: links need one tx and one rx pattern shape and one polarization per call, "
+                         f"got {sorted(names)}")
     s = scene.sionna_scene
     for name in list(s.transmitters) + list(s.receivers):
         s.remove(name)
     tx0, rx0 = specs[0]
-    s.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, polarization="V",
+    pol = link_polarization(tx0, rx0)
+    s.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, polarization=pol,
                                 pattern=register_pattern(tx0) if tx0 is not None else "iso")
-    s.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, polarization="V",
+    s.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, polarization=pol,
                                 pattern=register_pattern(rx0) if rx0 is not None else "iso")
     txs: list[tuple] = []
     rxs: list[tuple] = []

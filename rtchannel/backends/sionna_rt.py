@@ -6,7 +6,7 @@ once (all transmitters are sources, all receivers targets: two monostatic radars
 
 Choices (measured numbers in scenes/README.md):
 
-- Antennas: the radar's patterns (`RadarConfig.antennas`) as Sionna RT arrays, vertical polarisation,
+- Antennas: the radar's patterns (`RadarConfig.antennas`) as Sionna RT arrays with their polarisation ("V"/"H"),
   each transmitter/receiver oriented by its boresight (`rtchannel.backends.sionna_antennas`); Sionna's
   path coefficient a then satisfies |a|^2 = G_tx G_rx P_r / P_t, where P_r / P_t is the unit-gain
   value that includes the lambda / (4 pi) spreading of the Friis/radar equation. Isotropic antennas

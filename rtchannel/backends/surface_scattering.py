@@ -37,56 +37,37 @@ one facet. A flat plate then gives 4 pi A^2 / lambda^2 at broadside and a finely
 
 Phase convention: the shared synthesiser forms exp(+j 2 pi f tau) (the beat of tx times conj(rx)), so
 the gains returned here are the complex conjugates of Sionna's channel coefficients (exp(-j 2 pi f tau)).
-Polarisation: both antennas vertically polarised (theta-hat, Sionna's "V"); the diffuse model splits the
-incident power into TE/TM fractions c^2, 1 - c^2 at each surface, |Gamma| = sqrt(c^2 |r_te|^2 + (1-c^2)
-|r_tm|^2) (Sionna's Gamma); wall, floor and PO reflections use the complex co-polar coefficient projected
-on each ray's polarisation basis (`co_polar_reflection`, exact in every geometry: +r_tm for a vertically
-polarised ray over the floor, r_te for a horizontal ray on a side wall).
+Polarisation: a co-polarised link, both antennas vertical (theta-hat, Sionna's "V", the default) or both
+horizontal (phi-hat, "H"; `processing.radar.antenna`); the diffuse model splits the incident power into
+TE/TM fractions c^2, 1 - c^2 at each surface, |Gamma| = sqrt(c^2 |r_te|^2 + (1-c^2) |r_tm|^2) (Sionna's Gamma,
+c^2 the TE share of the link's polarisation); wall, floor and PO reflections use the complex co-polar
+coefficient projected on each ray's polarisation basis (`co_polar_reflection`, exact in every geometry:
++r_tm for a vertically polarised ray over the floor, r_te for a horizontally polarised one; on a side wall
+seen by horizontal rays the roles swap). The Lambertian diffuse power depends on the polarisation only
+through Gamma.
+
+Roughness (`rtchannel.scene.material`): a material with an rms height takes S and the specular factor from
+the Kirchhoff model at each element's angles (the clutter's patches, the walls' image reflections); the body
+keeps Sionna's fixed S.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from math import comb
 
 import numpy as np
-from scipy.constants import epsilon_0
 
 from processing.radar.propagation import FOUR_PI_1_5, path_amplitude  # noqa: F401 - the radar equation's home
 from rtchannel.backends import facet_kernels
 from processing.errors import InputError
+# the one material model lives with the scene (walls, skin); its old home keeps the name importable
+from rtchannel.scene.material import SurfaceMaterial  # noqa: F401
 
 
-
-@dataclass(frozen=True)
-class SurfaceMaterial:
-    """Electromagnetic surface properties at one frequency.
-
-    Attributes:
-        eta: complex relative permittivity eps_r' - j sigma / (omega eps0); None = perfect conductor.
-        scattering_coefficient: S in [0, 1] (diffuse fraction of the reflected field amplitude).
-        pattern: "lambertian", "directive" or "backscattering".
-        alpha_r, alpha_i, lambda_: lobe parameters of the directive/backscattering patterns.
-        xpd_coefficient: K_x; the co-polar diffuse power is scaled by (1 - K_x).
-        thickness: slab thickness [m] (ITU-R P.2040 single-layer slab); None = half-space.
-    """
-
-    eta: complex | None = None
-    scattering_coefficient: float = 1.0
-    pattern: str = "lambertian"
-    alpha_r: int = 4
-    alpha_i: int = 4
-    lambda_: float = 0.75
-    xpd_coefficient: float = 0.0
-    thickness: float | None = None
-
-    @classmethod
-    def from_skin(cls, skin, frequency_hz: float) -> "SurfaceMaterial":
-        """From an `rtchannel.scene.rt_scene.SkinMaterial` (permittivity, conductivity [S/m], S, pattern)."""
-        eta = complex(skin.relative_permittivity, -skin.conductivity / (2 * np.pi * frequency_hz * epsilon_0))
-        return cls(eta=eta, scattering_coefficient=float(skin.scattering_coefficient),
-                   pattern=skin.scattering_pattern, alpha_r=int(skin.alpha_r), alpha_i=int(skin.alpha_i),
-                   lambda_=float(skin.lambda_), xpd_coefficient=float(skin.xpd_coefficient),
-                   thickness=float(skin.thickness) if skin.thickness else None)
+def pol_index(polarization: str) -> int:
+    """The compiled kernels' code of a link polarisation: 0 for "V", 1 for "H"."""
+    if polarization not in ("V", "H"):
+        raise InputError(f"polarization must be 'V' or 'H', got {polarization!r}")
+    return 0 if polarization == "V" else 1
 
 
 def fresnel(cos_i, eta: complex | None):
@@ -111,8 +92,9 @@ def slab_reflection(cos_i, eta: complex | None, thickness: float | None, wavelen
     return r_te * (1 - e2) / (1 - r_te ** 2 * e2), r_tm * (1 - e2) / (1 - r_tm ** 2 * e2)
 
 
-def te_fraction(k_in: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """Fraction c^2 of a vertically polarised (theta-hat) incident wave's power in the TE component.
+def te_fraction(k_in: np.ndarray, normal: np.ndarray, polarization: str = "V") -> np.ndarray:
+    """Fraction c^2 of a vertically (theta-hat) or horizontally (phi-hat) polarised incident wave's power in
+    the TE component (H carries 1 - c^2 of V's: theta-hat and phi-hat span the transverse plane).
 
     k_in: propagation directions [..., 3] (unit); normal: surface normals [..., 3] (unit)."""
     z = np.array([0.0, 0.0, 1.0])
@@ -122,8 +104,10 @@ def te_fraction(k_in: np.ndarray, normal: np.ndarray) -> np.ndarray:
     pn = np.linalg.norm(e_perp, axis=-1)
     ok = (tn > 1e-9) & (pn > 1e-9)
     c = np.einsum("...i,...i->...", theta_hat, e_perp) / np.where(ok, tn * pn, 1.0)
+    c2 = np.clip(c * c, 0.0, 1.0)
+    c2 = 1.0 - c2 if pol_index(polarization) else c2
     # Normal incidence (no plane of incidence) or vertical propagation: split equally.
-    return np.where(ok, np.clip(c * c, 0.0, 1.0), 0.5)
+    return np.where(ok, c2, 0.5)
 
 
 def gamma_magnitude(r_te, r_tm, c2):
@@ -139,21 +123,36 @@ def theta_hat(k: np.ndarray) -> np.ndarray:
     return np.where(n > 1e-9, t / np.where(n > 1e-9, n, 1.0), np.array([1.0, 0.0, 0.0]))
 
 
-def co_polar_reflection(k_in, normal, r_te, r_tm):
-    """Co-polar reflection coefficient of a vertically polarised wave, exact in every geometry (Sionna RT's
-    bases): with e_perp = k_i x n / |k_i x n|, e_par = e_perp x k for the incident and the reflected ray
-    (k_r = k_i - 2 (k_i . n) n) and theta-hat the vertical-polarisation vector of each ray,
+def phi_hat(k: np.ndarray) -> np.ndarray:
+    """Unit horizontal-polarisation vectors [..., 3] of waves travelling along unit `k` [..., 3]: z x k
+    normalised (y for vertical propagation, where it is undefined)."""
+    t = np.stack([-k[..., 1], k[..., 0], np.zeros(k.shape[:-1])], axis=-1)
+    n = np.linalg.norm(t, axis=-1, keepdims=True)
+    return np.where(n > 1e-9, t / np.where(n > 1e-9, n, 1.0), np.array([0.0, 1.0, 0.0]))
 
-        Gamma = r_te (th_i . e_perp)(e_perp . th_r) + r_tm (th_i . e_par_i)(e_par_r . th_r).
+
+def polarization_hat(k: np.ndarray, polarization: str = "V") -> np.ndarray:
+    """Unit field vectors [..., 3] of a "V" (`theta_hat`) or "H" (`phi_hat`) polarised wave along unit k."""
+    return phi_hat(k) if pol_index(polarization) else theta_hat(k)
+
+
+def co_polar_reflection(k_in, normal, r_te, r_tm, polarization: str = "V"):
+    """Co-polar reflection coefficient of a vertically ("V") or horizontally ("H") polarised wave, exact in
+    every geometry (Sionna RT's bases): with e_perp = k_i x n / |k_i x n|, e_par = e_perp x k for the
+    incident and the reflected ray (k_r = k_i - 2 (k_i . n) n) and p-hat the polarisation vector of each ray
+    (`polarization_hat`: theta-hat or phi-hat),
+
+        Gamma = r_te (p_i . e_perp)(e_perp . p_r) + r_tm (p_i . e_par_i)(e_par_r . p_r).
 
     A vertical dipole over a conductor (r_te = -1, r_tm = +1) gives +1 at every angle (its image is in
-    phase), a side wall seen by horizontal rays r_te. k_in [..., 3] unit incident directions, normal [..., 3]
-    unit normals; r_te, r_tm [...] the Fresnel/slab coefficients. At normal incidence e_perp is any vector
-    across the ray (the result does not depend on it)."""
+    phase), a side wall seen by horizontal rays r_te; horizontally polarised, the floor gives r_te and the
+    side wall r_tm. k_in [..., 3] unit incident directions, normal [..., 3] unit normals; r_te, r_tm [...] the
+    Fresnel/slab coefficients. At normal incidence e_perp is any vector across the ray (the result does not
+    depend on it)."""
     k = np.asarray(k_in, float)
     n = np.broadcast_to(np.asarray(normal, float), k.shape)
     k_r = k - 2 * np.einsum("...i,...i->...", k, n)[..., None] * n
-    th_i, th_r = theta_hat(k), theta_hat(k_r)
+    th_i, th_r = polarization_hat(k, polarization), polarization_hat(k_r, polarization)
     e_perp = np.cross(k, n)
     nrm = np.linalg.norm(e_perp, axis=-1, keepdims=True)
     fallback = np.cross(th_i, k)  # normal incidence: any e_perp across the ray
@@ -246,12 +245,14 @@ def triangle_phase_integral(corners: np.ndarray, w: np.ndarray) -> np.ndarray:
     return 2 * area * _dd2_exp(z)
 
 
-def diffuse_sqrt_rcs(mat: SurfaceMaterial, k_i, k_s, normal, area, gamma) -> np.ndarray:
+def diffuse_sqrt_rcs(mat: SurfaceMaterial, k_i, k_s, normal, area, gamma,
+                     wavelength: float | None = None) -> np.ndarray:
     """Real sqrt(sigma_d) [m] of surface elements under Sionna's diffuse model:
-    sigma_d = 4 pi S^2 Gamma^2 (1 - K_x) f_s cos(theta_i) dA."""
+    sigma_d = 4 pi S^2 Gamma^2 (1 - K_x) f_s cos(theta_i) dA, S at the incidence for a rough material
+    (`SurfaceMaterial.scattering_at`; `wavelength` [m] needed then)."""
     cos_i = np.clip(-np.einsum("...i,...i->...", normal, k_i), 0.0, 1.0)
     f_s = scattering_pattern(mat, k_i, k_s, normal)
-    s = mat.scattering_coefficient
+    s = mat.scattering_coefficient if mat.roughness_m is None else mat.scattering_at(cos_i, wavelength)
     return s * gamma * np.sqrt(4 * np.pi * (1 - mat.xpd_coefficient) * f_s * cos_i * np.maximum(area, 0.0))
 
 
@@ -266,13 +267,16 @@ def po_sqrt_rcs(corners, u_tx, u_rx, normal, rho, wavelength: float) -> np.ndarr
     return 1j * np.conj(rho) * (np.sqrt(4 * np.pi) / wavelength) * cos_b * integral
 
 
-def wall_factor(wall, cos_w, k_in, wavelength):
+def wall_factor(wall, cos_w, k_in, wavelength, polarization: str = "V"):
     """Conjugated co-polar slab reflection coefficient of `wall` at incidence cosines cos_w [N] for
-    incident directions k_in [N, 3] (synthesiser phase convention): conj(`co_polar_reflection`) with
-    `slab_reflection` (compiled)."""
+    incident directions k_in [N, 3] (synthesiser phase convention) of a "V" or "H" polarised link:
+    conj(`co_polar_reflection`) with `slab_reflection`, times the Kirchhoff specular factor
+    exp(-(4 pi sigma_h cos_w / lambda)^2 / 2) of the wall's rms height ``roughness_m`` (0 or absent: smooth),
+    the same roughness the clutter's diffuse and specular parts use (`rtchannel.scene.material`). Compiled."""
     eta = None if wall.relative_permittivity is None else complex(wall.relative_permittivity)
     return facet_kernels.wall_factors(cos_w, k_in, np.asarray(wall.normal, float), eta,
-                                      getattr(wall, "thickness", None) or 0.0, wavelength)
+                                      getattr(wall, "thickness", None) or 0.0, wavelength, pol_index(polarization),
+                                      float(getattr(wall, "roughness_m", 0.0) or 0.0))
 
 
 def diffuse_phases(seed: int | None, n_facets: int) -> np.ndarray | None:
@@ -291,25 +295,28 @@ def diffuse_phases(seed: int | None, n_facets: int) -> np.ndarray | None:
     return np.exp(1j * np.random.default_rng([int(seed), int(n_facets)]).uniform(0.0, 2 * np.pi, int(n_facets)))
 
 
-def facet_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, corners, p_a, p_b, po: bool, phase=None):
+def facet_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, corners, p_a, p_b, po: bool, phase=None,
+                polarization: str = "V", compiled: bool = True):
     """Complex path gains (synthesiser convention) of facets on p_a -> facet -> p_b.
 
     c: centroids [N, 3] (m); n: unit normals [N, 3]; area: [N] (m^2); corners: [N, 3, 3] (m, used with po);
     p_a, p_b: points [3] or [N, 3] (m); phase: unit factors [N] multiplying the diffuse part (see
-    `diffuse_phases`), or None. Diffuse term (Sionna's model), plus sqrt(1 - S^2) x PO if `po`."""
+    `diffuse_phases`), or None; polarization: the link's, "V" or "H". Diffuse term (Sionna's model), plus
+    sqrt(1 - S^2) x PO if `po` (the Kirchhoff specular factor for a rough material). The Lambertian pattern
+    runs compiled unless `compiled` is False (the numpy reference the kernels are tested against)."""
     p_a, p_b = np.broadcast_to(p_a, c.shape), np.broadcast_to(p_b, c.shape)
-    if mat.pattern == "lambertian":
-        diffuse, specular = _compiled_gains(mat, wavelength, c, n, area, corners, p_a, p_b, po)
+    if mat.pattern == "lambertian" and compiled:
+        diffuse, specular = _compiled_gains(mat, wavelength, c, n, area, corners, p_a, p_b, po, polarization)
     else:
         da, db = c - p_a, c - p_b
         ra, rb = np.linalg.norm(da, axis=1), np.linalg.norm(db, axis=1)
         k_i = da / ra[:, None]  # incident propagation direction
         u_b = -db / rb[:, None]  # facet -> receiver
         cos_i = np.clip(-np.einsum("ij,ij->i", n, k_i), 0.0, 1.0)
-        c2 = te_fraction(k_i, n)
+        c2 = te_fraction(k_i, n, polarization)
         r_te, r_tm = slab_reflection(cos_i, mat.eta, mat.thickness, wavelength)
         scale = wavelength / (FOUR_PI_1_5 * ra * rb)
-        diffuse = scale * diffuse_sqrt_rcs(mat, k_i, u_b, n, area, gamma_magnitude(r_te, r_tm, c2))
+        diffuse = scale * diffuse_sqrt_rcs(mat, k_i, u_b, n, area, gamma_magnitude(r_te, r_tm, c2), wavelength)
         if po:
             half = -k_i + u_b
             h_len = np.maximum(np.linalg.norm(half, axis=1), 1e-12)
@@ -317,37 +324,41 @@ def facet_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, corners, p_
             rb_te, rb_tm = slab_reflection(cos_b, mat.eta, mat.thickness, wavelength)
             # the facet mirrors tx onto rx about the bisector: the co-polar coefficient of that reflection,
             # sign-normalised so that a conducting plate at broadside gives rho = +1 (Knott's PO form)
-            rho = -co_polar_reflection(k_i, half / h_len[:, None], rb_te, rb_tm)
-            specular = (scale * np.sqrt(1.0 - mat.scattering_coefficient ** 2)
+            rho = -co_polar_reflection(k_i, half / h_len[:, None], rb_te, rb_tm, polarization)
+            specular = (scale * mat.specular_at(np.einsum("ij,ij->i", n, half), wavelength)
                         * po_sqrt_rcs(corners, -k_i, u_b, n, rho, wavelength))
     g = diffuse * phase if phase is not None else diffuse.astype(complex)
     return g + specular if po else g
 
 
 def facet_gains_indexed(mat: SurfaceMaterial, wavelength: float, cent, norm, area, verts, faces, eb, ef, p_a, p_b,
-                        po: bool, phase=None):
+                        po: bool, phase=None, polarization: str = "V"):
     """`facet_gains` of facets ef [N] of frames eb [N] read in place: centroids cent and normals norm
     [B, F, 3], areas [B, F] (m^2), corners verts[eb, faces[ef]] (verts [B, V, 3] m, faces [F, 3]). The
     Lambertian model's compiled kernel reads them by index (no [N, 3, 3] gather); other patterns gather."""
     if mat.pattern != "lambertian":
         corners = verts[eb[:, None], faces[ef]] if po else None
-        return facet_gains(mat, wavelength, cent[eb, ef], norm[eb, ef], area[eb, ef], corners, p_a, p_b, po, phase)
+        return facet_gains(mat, wavelength, cent[eb, ef], norm[eb, ef], area[eb, ef], corners, p_a, p_b, po, phase,
+                           polarization)
     shape = (len(eb), 3)
+    s_coef, rough = mat.kernel_surface()
     diffuse, specular = facet_kernels.indexed_gains(
         cent, norm, area, verts, faces, eb, ef, np.broadcast_to(p_a, shape), np.broadcast_to(p_b, shape), mat.eta,
-        mat.thickness or 0.0, wavelength, mat.scattering_coefficient, mat.xpd_coefficient, po)
+        mat.thickness or 0.0, wavelength, s_coef, mat.xpd_coefficient, po, pol=pol_index(polarization), rough=rough)
     g = diffuse * phase if phase is not None else diffuse.astype(complex)
     return g + specular if po else g
 
 
-def lambertian_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, p_a, p_b) -> np.ndarray:
+def lambertian_gains(mat: SurfaceMaterial, wavelength: float, c, n, area, p_a, p_b,
+                     polarization: str = "V") -> np.ndarray:
     """Real path gains [E] of surface elements (centroids c [E, 3], normals, areas [E]) on p_a -> c -> p_b
     (points [E, 3]) under the Lambertian diffuse model: the fused, compiled equivalent of
     `path_amplitude` applied to `diffuse_sqrt_rcs`."""
-    return _compiled_gains(mat, wavelength, c, n, area, None, p_a, p_b, False)[0]
+    return _compiled_gains(mat, wavelength, c, n, area, None, p_a, p_b, False, polarization)[0]
 
 
-def _compiled_gains(mat, wavelength, c, n, area, corners, p_a, p_b, po):
+def _compiled_gains(mat, wavelength, c, n, area, corners, p_a, p_b, po, polarization="V"):
     """(diffuse [E] real, PO [E] complex or None) path gains of the Lambertian model (compiled kernels)."""
+    s_coef, rough = mat.kernel_surface()
     return facet_kernels.lambertian_po_gains(c, n, area, corners, p_a, p_b, mat.eta, mat.thickness or 0.0, wavelength,
-                                             mat.scattering_coefficient, mat.xpd_coefficient, po)
+                                             s_coef, mat.xpd_coefficient, po, pol_index(polarization), rough)

@@ -11,7 +11,9 @@ Also here: the planar static faces (walls, floor, furniture tops) for image-meth
 ray casts (for visibility tests), and the antenna clearance check (Sionna RT gives garbage for an
 antenna closer than ~1 cm to geometry).
 
-The body's material (dry skin at the carrier) is `rtchannel.scene.skin`.
+The body's material (dry skin at the carrier) is `rtchannel.scene.skin`; walls, floor and furniture carry
+their slab (permittivity, conductivity, thickness from the scene file) and an rms roughness
+(`roughness_m`, default `material.WALL_ROUGHNESS_M`), one `material.SurfaceMaterial` per static shape.
 """
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ from rtchannel.errors import RadarPlacementError, SceneFileError
 from rtchannel.assets import scenes_dir
 from rtchannel.scene.sandbox import load_error_line, load_scene_string, read_scene_xml
 from rtchannel.body.meshgeom import closest_point_on_triangles, is_closed, winding_numbers
+from rtchannel.scene.material import WALL_ROUGHNESS_M, SurfaceMaterial
 from rtchannel.scene.skin import _SKIN_MATERIAL_ID, SkinMaterial, skin_xml
 from processing.errors import InputError
 
@@ -53,6 +56,9 @@ class Wall:
         relative_permittivity: complex eps_r' - j sigma / (omega eps0) at the scene frequency.
         thickness: slab thickness [m] of the material (Sionna's thin-slab model).
         area: polygon area [m^2].
+        roughness_m: rms height [m] of the surface: its specular reflections (the body's image paths) are
+            scaled by the Kirchhoff factor and its clutter scatters S^2 = 1 - factor^2 diffusely
+            (`rtchannel.scene.material`); 0 is a smooth wall.
     """
 
     name: str
@@ -62,6 +68,13 @@ class Wall:
     relative_permittivity: complex
     thickness: float = 0.0
     area: float = 0.0
+    roughness_m: float = WALL_ROUGHNESS_M
+
+    @property
+    def material(self) -> SurfaceMaterial:
+        """The wall's `SurfaceMaterial` (Lambertian diffuse part, Kirchhoff roughness)."""
+        eta = None if self.relative_permittivity is None else complex(self.relative_permittivity)
+        return SurfaceMaterial(eta=eta, thickness=self.thickness or None, roughness_m=float(self.roughness_m))
 
 
 def resolve_scene(scene) -> Path:
@@ -107,6 +120,8 @@ class RTScene:
         sionna: load through Sionna RT (`sionna_scene`, for its path solver); False loads with Mitsuba alone
             when the scene allows it (`rtchannel.scene.mitsuba_scene`: 0.4-0.6 s less start-up, same geometry,
             ids and walls; `sionna_scene` is then None), as the facets backend does.
+        roughness_m: rms height [m] of the static shapes' surfaces: one number for all, or {shape name: m}
+            (shapes not named keep `WALL_ROUGHNESS_M`); None: `WALL_ROUGHNESS_M` everywhere.
 
     Attributes:
         sionna_scene: the ``sionna.rt.Scene`` (the body is ``sionna_scene.objects["body"]``), or None when
@@ -118,7 +133,8 @@ class RTScene:
     """
 
     def __init__(self, scene: str | Path, body_faces: np.ndarray, body_vertices: np.ndarray,
-                 frequency_hz: float, skin: SkinMaterial | None = None, sionna: bool = True):
+                 frequency_hz: float, skin: SkinMaterial | None = None, sionna: bool = True,
+                 roughness_m: float | dict | None = None):
         mi = _mi()
         import drjit as dr
 
@@ -126,6 +142,7 @@ class RTScene:
         self.frequency_hz = float(frequency_hz)
         self.skin = SkinMaterial.at(frequency_hz) if skin is None else skin
         self.body_faces = np.asarray(body_faces, dtype=np.int64)
+        self._roughness = roughness_m
         verts = np.asarray(body_vertices, dtype=np.float64)
         if verts.ndim != 2 or verts.shape[1] != 3 or self.body_faces.ndim != 2 or self.body_faces.shape[1] != 3:
             raise InputError("body_vertices must be [V, 3] and body_faces [T, 3]")
@@ -218,6 +235,21 @@ class RTScene:
         if pos.shape != verts.shape or not np.allclose(pos, verts, atol=1e-4):
             raise RuntimeError("the body mesh was reordered on load; in-place vertex updates would be wrong")
 
+    def roughness(self, name: str) -> float:
+        """rms height [m] of the static shape `name` (`roughness_m` of the constructor)."""
+        r = self._roughness
+        if isinstance(r, dict):
+            r = r.get(name, WALL_ROUGHNESS_M)
+        r = WALL_ROUGHNESS_M if r is None else float(r)
+        if not (np.isfinite(r) and r >= 0):
+            raise InputError(f"roughness_m of '{name}' must be a finite rms height >= 0 m, got {r}")
+        return r
+
+    def material(self, name: str) -> SurfaceMaterial:
+        """The `SurfaceMaterial` of the static shape `name` at the scene frequency (slab and roughness)."""
+        eps, sigma, thickness = next(slab for n, _, _, slab in self._static if n == name)
+        return SurfaceMaterial.from_slab(eps, sigma, thickness, self.frequency_hz, self.roughness(name))
+
     @property
     def static_meshes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
         """(name, vertices [V, 3] m, faces [T, 3]) of every static shape."""
@@ -299,7 +331,7 @@ class RTScene:
         eps_r, sigma, thickness = mat
         eps = complex(eps_r, -sigma / (omega * epsilon_0))
         return Wall(name=name, point=centroid, normal=n, polygon=polygon, relative_permittivity=eps,
-                    thickness=thickness, area=float(hull.volume))
+                    thickness=thickness, area=float(hull.volume), roughness_m=self.roughness(name))
 
     # ------------------------------------------------------------------ per-frame API
     def set_body(self, vertices: np.ndarray) -> None:
@@ -375,14 +407,16 @@ _CACHE_SIZE = 4
 
 
 def get_scene(scene: str | Path, lod: str, height: float, frequency_hz: float,
-              skin: SkinMaterial | None = None, sionna: bool = True) -> RTScene:
+              skin: SkinMaterial | None = None, sionna: bool = True, roughness_m: float | None = None) -> RTScene:
     """Cached `RTScene` with the avatar (`lod`, scaled to `height` m) as body, so batch workers keep the
     scene and Dr.Jit's compiled kernels warm. The body is returned in the rest pose (a cached scene is
     reset, ~10 ms, since a previous user left it in its last pose); call `set_body`. `sionna=False` (the
-    facets backend) may get a scene loaded without Sionna RT (`RTScene`), or a cached one loaded with it."""
+    facets backend) may get a scene loaded without Sionna RT (`RTScene`), or a cached one loaded with it.
+    roughness_m: the static shapes' rms height [m] (None: `WALL_ROUGHNESS_M`)."""
     from rtchannel.body.avatar import load_avatar
 
-    key = (str(resolve_scene(scene)), lod, round(float(height), 6), float(frequency_hz), skin)
+    key = (str(resolve_scene(scene)), lod, round(float(height), 6), float(frequency_hz), skin,
+           None if roughness_m is None else float(roughness_m))
     for k in [key + (True,)] + ([] if sionna else [key + (False,)]):
         if k in _CACHE:
             _CACHE.move_to_end(k)
@@ -392,7 +426,7 @@ def get_scene(scene: str | Path, lod: str, height: float, frequency_hz: float,
             return sc
     key += (sionna,)
     av = load_avatar(lod, height)
-    sc = RTScene(scene, av.faces, av.vertices, frequency_hz, skin, sionna=sionna)
+    sc = RTScene(scene, av.faces, av.vertices, frequency_hz, skin, sionna=sionna, roughness_m=roughness_m)
     _CACHE[key] = (sc, sc.body_vertices.copy())
     while len(_CACHE) > _CACHE_SIZE:
         _CACHE.popitem(last=False)
