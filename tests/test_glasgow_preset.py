@@ -81,6 +81,9 @@ def test_preset_expands_into_five_classes_on_the_glasgow_radar(items):
     for it in items:
         placements.setdefault(it.motion["key"], set()).add(json.dumps(it.radar, sort_keys=True))
     assert all(len(v) == 4 for v in placements.values())
+    # polarisation drawn per placement (not published for the kit): both, about half each
+    pols = [it.radar["antenna"]["polarization"] for it in items]
+    assert set(pols) == {"V", "H"} and 0.4 < np.mean([p == "H" for p in pols]) < 0.6
     # no campaign's onsets: every activity lies anywhere in its clip; people of 1.45-1.95 m at 0.6-1.6x pace,
     # facing the radar +-60 deg; walks of 1-4 legs, either way first, at their own speed
     assert {it.motion["clip_start_s"] for it in items} == {"anywhere"}

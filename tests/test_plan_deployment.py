@@ -198,7 +198,7 @@ def test_drawn_beam_takes_its_peak_gain_from_the_beamwidths():
     b = BeamDraw(e_plane_deg=20.0, h_over_e=1.25).draw(np.random.default_rng(0))  # vertical elements: E = elevation
     assert (b["hpbw_el_deg"], b["hpbw_az_deg"]) == (20.0, 25.0)
     assert b["peak_gain_dbi"] == pytest.approx(10 * np.log10(32400 / 500), abs=1e-12)
-    h = BeamDraw(e_plane_deg=20.0, h_over_e=1.25).draw(np.random.default_rng(0), polarisation="H")
+    h = BeamDraw(e_plane_deg=20.0, h_over_e=1.25).draw(np.random.default_rng(0), polarization="H")
     assert (h["hpbw_el_deg"], h["hpbw_az_deg"]) == (25.0, 20.0)
     items = expand(_plan(physical={"hpbw_el_deg": None, "beam": {"e_plane_deg": [18, 40], "h_over_e": [1.0, 1.3]}}))
     gains = [it.radar["antenna"]["peak_gain_dbi"] for it in items]
@@ -214,3 +214,15 @@ def test_drawn_beam_takes_its_peak_gain_from_the_beamwidths():
 def test_bad_aim_and_beam_fields_are_refused(bad):
     with pytest.raises(ValidationError):
         _plan(physical=bad)
+
+
+def test_polarisation_is_drawn_per_placement_and_sets_the_beams_planes():
+    items = expand(_plan(physical={"hpbw_el_deg": None, "polarization": ["V", "H"],
+                                   "beam": {"e_plane_deg": [18, 40], "h_over_e": [1.1, 1.3]}}))
+    pols = [it.radar["antenna"]["polarization"] for it in items]
+    assert 0.3 < np.mean([p == "H" for p in pols]) < 0.7
+    for it in items:  # the E-plane (the narrower) lies in the plane of the elements
+        a = it.radar["antenna"]
+        assert (a["hpbw_el_deg"] < a["hpbw_az_deg"]) == (a["polarization"] == "V")
+    with pytest.raises(ValidationError):
+        _plan(physical={"polarization": ["X"]})

@@ -314,13 +314,17 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
                     ant = {key: float(_draw(getattr(ph, key), arng))
                            for key in ("downtilt_deg", "hpbw_el_deg") if getattr(ph, key) is not None}
                     links = ph.placed(links, act, arng)
-                if ph.aim is not None or ph.beam is not None:  # own stream again: older plans keep their draws
-                    brng = np.random.default_rng(derive_seed(plan.seed, f"beam:{motion_id}-p{pi}"))
+                if ph.aim is not None or ph.beam is not None or ph.polarization is not None:
+                    brng = np.random.default_rng(derive_seed(plan.seed, f"beam:{motion_id}-p{pi}"))  # own stream
+                    pol = "V"
+                    if ph.polarization is not None:
+                        pol = ph.polarization[int(brng.integers(len(ph.polarization)))]
+                        ant["polarization"] = pol
                     if ph.aim is not None:
                         stature = 1.75 if motion["height"] is None else float(motion["height"])
                         ant["downtilt_deg"] = ph.aim.downtilt_deg(links[0].tx, stature, brng)
                     if ph.beam is not None:
-                        ant.update(ph.beam.draw(brng))
+                        ant.update(ph.beam.draw(brng, pol))
                 radar = {"waveform": wf.model_dump(mode="json"), "dsp": ph.dsp.model_dump(mode="json"),
                          "links": [link.model_dump(mode="json") for link in links], **ph.kit(links)}
                 if ant:

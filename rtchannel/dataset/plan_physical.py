@@ -122,13 +122,14 @@ class BeamDraw(_Model):
     def _ratio(cls, v):
         return _within(v, 1.0, 3.0, "beam.h_over_e")
 
-    def draw(self, rng, polarisation: str = "V") -> dict:
-        """Antenna fields {hpbw_az_deg, hpbw_el_deg, peak_gain_dbi} of one drawn beam."""
+    def draw(self, rng, polarization: str = "V") -> dict:
+        """Antenna fields {hpbw_az_deg, hpbw_el_deg, peak_gain_dbi} of one drawn beam of a Yagi of linear
+        `polarization` ("V": elements vertical, E-plane in elevation; "H": E-plane in azimuth)."""
         from processing.radar.antenna import practical_gain_dbi
 
         e = _value(self.e_plane_deg, rng)
         h = min(e * _value(self.h_over_e, rng), 170.0)
-        az, el = (h, e) if polarisation == "V" else (e, h)
+        az, el = (h, e) if polarization == "V" else (e, h)
         return {"hpbw_az_deg": az, "hpbw_el_deg": el, "peak_gain_dbi": practical_gain_dbi(az, el)}
 
 
@@ -162,6 +163,9 @@ class PhysicalLayer(_Model):
                                 "downtilt_deg")
     beam: BeamDraw | None = Field(None, description="glasgow kit: draw the Yagis' E- and H-plane beamwidths and take "
                                   "the peak gain from them, instead of hpbw_el_deg")
+    polarization: list[Literal["V", "H"]] | None = Field(
+        None, min_length=1, description="glasgow kit: the antennas' linear polarisation, drawn uniformly from this "
+        "list per placement (both antennas of a link alike); None: the kit's default (V)")
 
     @field_validator("distance_m")
     @classmethod
@@ -209,9 +213,9 @@ class PhysicalLayer(_Model):
         if self.directions is not None and self.angles_deg is not None:
             raise InputError("give either 'directions' or 'angles_deg', not both")
         if self.radar != "glasgow" and any(x is not None for x in (self.downtilt_deg, self.hpbw_el_deg, self.aim,
-                                                                     self.beam)):
-            raise InputError("downtilt_deg, hpbw_el_deg, aim and beam apply to radar: glasgow (the seed's horns are "
-                             "fixed)")
+                                                                     self.beam, self.polarization)):
+            raise InputError("downtilt_deg, hpbw_el_deg, aim, beam and polarization apply to radar: glasgow (the "
+                             "seed's horns are fixed)")
         if self.aim is not None and self.downtilt_deg is not None:
             raise InputError("give either 'aim' or 'downtilt_deg', not both")
         if self.beam is not None and self.hpbw_el_deg is not None:
