@@ -106,7 +106,8 @@ def test_invalid_idle_settings_are_rejected(bad):
 
 def test_glasgow_items_carry_idle_motion_and_it_survives_the_mti():
     """A held pose is removed by the Glasgow MTI (4th-order high-pass at 0.1 m/s): after a simulated stand-up
-    the columns go below the noise. With idle motion they keep a line near 0 m/s, as real recordings do."""
+    the columns go below the noise. With idle motion (the measured sway and joint rotations: chest, head and
+    hands at ~0.04 m/s RMS, peaks above the cut-off) a weak line near 0 m/s keeps part of them."""
     from rtchannel.dataset.items import build_motion, run_item
     from rtchannel.dataset.plan import expand, load_plan
 
@@ -133,7 +134,8 @@ def test_glasgow_items_carry_idle_motion_and_it_survives_the_mti():
         out[name] = arrays["valid"][late], arrays["mean_velocity"][late]
     assert late.sum() >= 10
     assert not out["still"][0].any()
-    assert out["idle"][0].all() and np.abs(out["idle"][1]).max() < 0.3
+    # RMS 0.04 m/s with a Gaussian spread crosses 0.1 m/s now and then: part of the columns, never a fast line
+    assert out["idle"][0].mean() > 0.25 and np.abs(out["idle"][1][out["idle"][0]]).max() < 0.3
 
 
 def test_plan_draws_the_idle_factor_per_motion_and_rejects_one_out_of_range(tmp_path):
@@ -154,9 +156,10 @@ def test_plan_draws_the_idle_factor_per_motion_and_rejects_one_out_of_range(tmp_
 
 
 def test_glasgow_idle_amplitudes_are_the_ones_measured_on_real_standing_takes():
-    # the preset's idle values are scripts/idle_from_mocap.py's means over two real standing takes (CMU 77_02 and
-    # the standing part of 82_08), rounded to 0.01 deg; the drawn scale 0.2-2 spans the two takes' ratios to
-    # that mean (0.21-1.78), so either person's stillness is inside the drawn range
+    # the preset's idle values are scripts/idle_from_mocap.py's speed-matched amplitudes of two real standing takes
+    # (CMU 77_02 and the standing part of 82_08): their simulated chest, head and hand speeds equal the real ones
+    # within 25 % (one common factor on the measured angles; the remaining per-part mismatch is ~15 %), and the
+    # drawn scale 0.3-2 spans the two takes' chest-speed ratios to their mean (0.4-1.6)
     import importlib.util
     from pathlib import Path
 
@@ -170,9 +173,48 @@ def test_glasgow_idle_amplitudes_are_the_ones_measured_on_real_standing_takes():
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
     plan = load_plan("glasgow")
-    assert {f"{g}_deg": v for g, v in script.measured().items()} == {
+    amps, _ = script.matched()
+    assert {f"{g}_deg": v for g, v in amps.items()} == {
         k: v for k, v in plan.motion.idle.model_dump().items() if k.endswith("_deg")}
-    per_take = [script.idle_amplitudes(script.Motion.from_file(data_path(t)))[0] for t, _ in script.TAKES]
-    mean = script.measured()
+    real = []
+    for path, _ in script.TAKES:
+        r = script.Motion.from_file(data_path(path)).resampled(script.FPS)
+        a, b = script.standing_span(r)
+        real.append(script.band_speeds(r.positions[a:b]))
+    sim = script.simulated_speeds(amps, seeds=4)
+    for part in sim:
+        assert sim[part] == pytest.approx(np.mean([x[part] for x in real]), rel=0.25)
     lo, hi = plan.motion.idle_scale
-    assert all(lo <= t[g] / mean[g] <= hi for t in per_take for g in mean)
+    mean = np.mean([x["chest"] for x in real])
+    assert all(lo <= x["chest"] / mean <= hi for x in real)
+
+
+def test_sway_tilts_the_whole_body_about_the_ankles():
+    # an inverted pendulum: a point h above the ankles moves horizontally by h * theta (small angles), per axis
+    # RMS h * theta_rms; the ankles stay where they are and the body keeps its shape (all joints turn together)
+    pose = Motion.procedural("stand", height=1.75, seed=0).resampled(60.0)
+    n = 1200
+    still = Motion(rig=pose.rig, fps=60.0, rotations=np.repeat(pose.rotations[-1:], n, 0),
+                   positions=np.repeat(pose.positions[-1:], n, 0), activity="stand")
+    zero = {f"{g}_deg": 0.0 for g in GROUPS}
+    out = add_idle(still, IdleMotion(sway_deg=0.5, **zero), seed=3)
+    names = list(pose.rig.names)
+    ankles = [names.index("LeftFoot"), names.index("RightFoot")]
+    np.testing.assert_allclose(out.positions[:, ankles].mean(axis=1), still.positions[:, ankles].mean(axis=1),
+                               atol=1e-9)
+    j = names.index("Spine1")
+    h = still.positions[0, j, 2] - still.positions[0, ankles, 2].mean()
+    d = out.positions[:, j, :2] - still.positions[:, j, :2]
+    # 0.5 deg: the small-angle error is ~1e-5 relative; the RMS of a band-limited draw is exact by construction
+    np.testing.assert_allclose(np.sqrt((d ** 2).mean(axis=0)), h * np.radians(0.5), rtol=0.02)
+    # rigid: every bone keeps its length and every joint turns by the same rotation
+    for k, p in enumerate(pose.rig.parents):
+        if p >= 0:
+            np.testing.assert_allclose(np.linalg.norm(out.positions[:, k] - out.positions[:, p], axis=1),
+                                       np.linalg.norm(still.positions[:, k] - still.positions[:, p], axis=1), atol=1e-9)
+    turn = out.rotations[:, 0] @ np.swapaxes(still.rotations[:, 0], -1, -2)
+    np.testing.assert_allclose(out.rotations[:, j], turn @ still.rotations[:, j], atol=1e-12)
+    # without sway, the draws of the joints are those of before (sway noise is drawn after them)
+    a = add_idle(still, IdleMotion(), seed=3)
+    b = add_idle(still, IdleMotion(sway_deg=0.0), seed=3)
+    np.testing.assert_array_equal(a.positions, b.positions)

@@ -9,6 +9,10 @@ of any motion. The legs and the hips are left alone, so planted feet stay plante
 standing height down to 2/3 of that (real falls in the Glasgow recordings are blank after the impact, while sit,
 stand and pick recordings keep their 0 m/s line to the end).
 
+On top of the joints, `sway_deg` tilts the whole body about the midpoint of its ankles by band-limited angles
+about both horizontal axes: quiet standing is an inverted pendulum (Winter 1995), so trunk, head and arms sway
+together with the hips, which the joint rotations alone (hips fixed) cannot give.
+
 Each perturbed joint gets three independent rotation-vector components (axes of the world-aligned rest frame),
 each Gaussian noise band-passed to `band_hz` (4th-order Butterworth, zero phase) and scaled to `rms_deg` of
 its group, so a clip's realised RMS per component is exactly the requested one. The perturbation is applied to
@@ -49,6 +53,9 @@ class IdleMotion(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
+    sway_deg: float = Field(0.0, ge=0, le=10, description="whole-body sway about the ankles [deg RMS per "
+                            "horizontal axis]: quiet standing is an inverted pendulum (Winter 1995, Gait Posture "
+                            "3:193), so the trunk, head and arms move together with the hips")
     spine_deg: float = Field(0.7, ge=0, le=20)
     neck_deg: float = Field(1.0, ge=0, le=30)
     shoulder_deg: float = Field(1.7, ge=0, le=30)
@@ -67,7 +74,8 @@ class IdleMotion(BaseModel):
 
     def scaled(self, factor: float) -> "IdleMotion":
         """These settings with every amplitude times `factor` (validated: ValidationError when out of range)."""
-        return IdleMotion(**{**self.model_dump(), **{f"{g}_deg": getattr(self, f"{g}_deg") * factor for g in GROUPS}})
+        return IdleMotion(**{**self.model_dump(), "sway_deg": self.sway_deg * factor,
+                             **{f"{g}_deg": getattr(self, f"{g}_deg") * factor for g in GROUPS}})
 
     def rms(self) -> dict[str, float]:
         """{group: deg RMS}."""
@@ -123,5 +131,21 @@ def add_idle(motion: Motion, idle: IdleMotion, seed: int) -> Motion:
             local = local @ delta[j]
         new_rot[:, j] = new_rot[:, p] @ local
         new_pos[:, j] = new_pos[:, p] + np.einsum("fab,fb->fa", turn, pos[:, j] - pos[:, p])
+    if idle.sway_deg > 0:  # drawn after the joints' noise: motions without sway keep their draws
+        new_rot, new_pos = _sway(new_rot, new_pos, names, idle, weight, motion.fps, rng)
     params = {**motion.params, "idle": {**idle.model_dump(mode="json"), "seed": int(seed)}}
     return replace(motion, rotations=new_rot, positions=new_pos, params=params)
+
+
+def _sway(rot: np.ndarray, pos: np.ndarray, names: list[str], idle: IdleMotion, weight: np.ndarray, fps: float,
+          rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Rotations [F, J, 3, 3] and positions [F, J, 3] (m) turned as one body by band-limited angles about the
+    two horizontal axes through the midpoint of the ankles (`LeftFoot`, `RightFoot`; the hips' ground point
+    without them): the inverted pendulum of quiet standing. A 0.3 deg tilt moves the toes by < 1 mm."""
+    n = pos.shape[0]
+    tilt = np.deg2rad(idle.sway_deg) * weight * band_noise(n, fps, idle.band_hz, rng, 2).T  # [F, 2] about x, y
+    turn = Rotation.from_rotvec(np.concatenate([tilt, np.zeros((n, 1))], axis=1)).as_matrix()
+    ankles = [names.index(j) for j in ("LeftFoot", "RightFoot") if j in names]
+    pivot = pos[:, ankles].mean(axis=1) if ankles else pos[:, 0] * (1.0, 1.0, 0.0)
+    new_pos = pivot[:, None] + np.einsum("fab,fjb->fja", turn, pos - pivot[:, None])
+    return np.einsum("fab,fjbc->fjac", turn, rot), new_pos
