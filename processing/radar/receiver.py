@@ -54,9 +54,8 @@ from processing.radar.antenna import AntennaPattern, GaussianBeam, YagiBeam
 from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
 from processing.errors import InputError
+from processing.constants import K_BOLTZMANN_J_K as K_BOLTZMANN, T0_K  # J/K, K (re-exported names)
 
-K_BOLTZMANN = 1.380649e-23  # J/K (exact, SI 2019)
-T0_K = 290.0  # reference temperature of the noise figure (IEEE)
 NOISE_BLOCK_CHIRPS = 256  # part of the reproducibility contract: changing it changes every noise realisation
 
 

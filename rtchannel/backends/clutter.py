@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from processing.constants import EPSILON_0_F_M
 from processing.dsp.fast_time import max_range
 from processing.pathset import PathSet
 from processing.radar.propagation import bistatic_delay
@@ -89,7 +90,7 @@ def _patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
     w = 2 * math.pi * frequency_hz
     for k, (_, v, f, slab) in enumerate(rt_scene._static):  # noqa: SLF001 - the scene's static meshes
         eps, sigma, thickness = (float(x) for x in slab)
-        e = complex(eps, -sigma / (w * 8.8541878128e-12))
+        e = complex(eps, -sigma / (w * EPSILON_0_F_M))
         for tri in v[f]:
             edge = max(np.linalg.norm(tri[1] - tri[0]), np.linalg.norm(tri[2] - tri[1]), np.linalg.norm(tri[0] - tri[2]))
             sub = _subdivide(tri[0], tri[1], tri[2], max(1, int(math.ceil(edge / size_m))))

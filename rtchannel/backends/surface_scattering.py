@@ -49,7 +49,7 @@ from dataclasses import dataclass
 from math import comb
 
 import numpy as np
-from scipy.constants import epsilon_0
+from processing.constants import EPSILON_0_F_M as epsilon_0
 
 from processing.radar.propagation import FOUR_PI_1_5, path_amplitude  # noqa: F401 - the radar equation's home
 from rtchannel.backends import facet_kernels
