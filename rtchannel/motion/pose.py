@@ -119,17 +119,21 @@ def check_resampled_frames(duration_s: float, fps: float, what: str = "fps") -> 
     return n
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class Motion:
     """A pose sequence sampled at a constant frame rate.
+
+    Immutable: fields cannot be reassigned and the arrays are read-only views (a shape check at
+    construction cannot be bypassed later); `dataclasses.replace(motion, positions=...)` makes a changed,
+    validated copy. Equality is identity.
 
     Attributes:
         rig: the skeleton (rest pose, hierarchy, height).
         fps: frame rate [Hz].
-        rotations: rest-relative global joint rotations [F, J, 3, 3].
-        positions: global joint positions [F, J, 3] in metres.
+        rotations: rest-relative global joint rotations [F, J, 3, 3] float64 (read-only).
+        positions: global joint positions [F, J, 3] float64 in metres (read-only).
         activity: activity label (``walk``, ``fall``, ``sit``, ``stand``, ``pick``) or "".
-        params: every parameter that produced this motion (JSON-serialisable).
+        params: every parameter that produced this motion (JSON-serialisable; a private copy).
     """
 
     rig: Rig
@@ -173,6 +177,16 @@ class Motion:
             raise InputError("Motion contains NaN or infinite joint data")
         if not self.fps > 0:
             raise InputError(f"fps must be positive, got {self.fps}")
+        for name in ("rotations", "positions"):
+            view = np.asarray(getattr(self, name)).view()  # the caller's array stays writeable
+            view.flags.writeable = False
+            object.__setattr__(self, name, view)
+        object.__setattr__(self, "params", dict(self.params))
+
+    def __repr__(self) -> str:
+        label = self.activity or "motion"
+        return (f"<Motion {label!r}: {self.n_frames} frames at {self.fps:g} Hz ({self.duration:.2f} s), "
+                f"{self.rig.n_joints} joints, height {self.rig.height:.2f} m; positions [frames, joints, 3] m>")
 
     @property
     def n_frames(self) -> int:
