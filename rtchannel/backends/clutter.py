@@ -28,7 +28,7 @@ import numba
 import numpy as np
 
 from processing.constants import EPSILON_0_F_M
-from processing.dsp.fast_time import max_range
+from processing.fast_time import max_range
 from processing.pathset import PathSet
 from processing.radar.propagation import bistatic_delay
 from processing.radar.waveform import C0

@@ -488,7 +488,7 @@ def _used_walls(walls, choice: bool | str, links, radar, wall_cut_db, stats: dic
     if choice is False or not walls:
         return []
     if choice == "auto":
-        from processing.dsp.fast_time import max_range
+        from processing.fast_time import max_range
         from rtchannel.backends.scene_model import walls_in_view
 
         kept, culled = walls_in_view(walls, links, max_range(radar.waveform, radar.dsp),
