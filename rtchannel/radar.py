@@ -110,6 +110,20 @@ class RadarConfig(BaseModel):
     orientation_deg: float = Field(0.0, allow_inf_nan=False, ge=-1e6, le=1e6, description="rotation [deg] about z applied to "
                                    "the links as given (the seed's direction angle); kept for provenance")
 
+    def __repr__(self) -> str:
+        def where(lk):
+            rx = "" if lk.rx is None else f" -> {tuple(round(x, 2) for x in lk.rx)}"
+            return f"{lk.name} {tuple(round(x, 2) for x in lk.tx)}{rx}"
+
+        shown = "; ".join(where(lk) for lk in self.links[:3]) + (f"; ... {len(self.links) - 3} more" if len(self.links) > 3 else "")
+        rx = "noiseless" if self.receiver is None else (f"receiver {self.receiver.transmit_power_dbm:g} dBm, NF "
+                                                        f"{self.receiver.noise_figure_db:g} dB")
+        n = len(self.links)
+        text = (f"<Radar: {n} link{'s' if n != 1 else ''} (m: {shown}), turned {self.orientation_deg:g} deg; {self.waveform!r}; "
+                f"DSP window {self.dsp.window_chirps} hop {self.dsp.hop_chirps} chirps, {self.dsp.range_sum} range sum, "
+                f"{self.dsp.static_removal} MTI; {self.antenna.kind} antennas; {rx}>")
+        return text if len(text) <= 600 else text[:595] + "...>"
+
     @model_validator(mode="after")
     def _unique_names(self) -> "RadarConfig":
         names = [link.name for link in self.links]

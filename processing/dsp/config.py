@@ -10,6 +10,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from processing.summary import settings_repr
 from processing.windows import is_window_name
 from processing.errors import InputError
 
@@ -129,6 +130,9 @@ class DSPConfig(BaseModel):
         if self.max_range_m is not None and self.max_range_m < self.min_range_m:
             raise InputError(f"max_range_m ({self.max_range_m}) is below min_range_m ({self.min_range_m})")
         return self
+
+    def __repr__(self) -> str:
+        return settings_repr(self)  # the fields set away from their defaults
 
     @property
     def nfft(self) -> int:

@@ -55,6 +55,11 @@ class Waveform(BaseModel):
                 f"max_range_m = {self.max_range_m:g} m")
         return self
 
+    def __repr__(self) -> str:
+        return (f"Waveform({self.carrier_hz / 1e9:.6g} GHz carrier, {self.bandwidth_hz / 1e6:.6g} MHz sweep, PRI "
+                f"{self.pri_s * 1e3:.6g} ms, {self.samples_per_chirp} samples at {self.fs / 1e6:.6g} MHz; range bin "
+                f"{self.range_resolution:.3g} m up to {self.max_range_m:g} m, v_max {self.v_max:.3g} m/s)")
+
     @property
     def chirp_s(self) -> float:
         """Chirp duration [s]."""

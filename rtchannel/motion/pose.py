@@ -61,6 +61,9 @@ class Rig:
     def n_joints(self) -> int:
         return len(self.names)
 
+    def __repr__(self) -> str:
+        return f"<Rig: {self.n_joints} joints ({self.names[0]} .. {self.names[-1]}), height {self.height:.3g} m>"
+
     def index(self, name: str) -> int:
         """Index of the joint called `name` (ValueError if the rig has none)."""
         return self.names.index(name)

@@ -130,5 +130,9 @@ class Scene:
 
         return cls(d["source"], tuple(Furniture.from_describe(f) for f in d.get("furniture", ())))
 
+    def __repr__(self) -> str:
+        return f"Scene({str(self.source)!r}" + "".join(f" + {f.label} at {tuple(round(x, 2) for x in f.position)} m"
+                                                       for f in self.furniture[:4]) + ")"
+
     def __str__(self) -> str:
         return str(self.source) + "".join(f"+{f.label}" for f in self.furniture)
