@@ -20,7 +20,7 @@ from processing.dsp.config import DSPConfig, check_recording
 from processing.dsp.signatures import Signature, signatures, signatures_from_projection
 from processing.errors import InputError
 from processing.pathset import PathSet
-from rtchannel.backends import MESH_BACKENDS, RESERVED_OPTIONS, backend_function, validate_options
+from rtchannel.backends import MESH_BACKENDS, backend_function, validate_options
 from rtchannel.motion.pose import Motion
 from rtchannel.radar import RadarConfig
 from rtchannel.results import LinkResult, PathSets, SimulationResult
@@ -185,17 +185,18 @@ def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "poin
             settings within it are used (`rtchannel.accuracy`) and recorded in ``config["accuracy"]``.
         calibration: the calibration table for `accuracy` (path or `CalibrationTable`; default: the shipped
             table of the radar's carrier and range bin).
-        **backend_options: the backend's options, checked by name and type (e.g. ``lod="5k"``); with
-            `accuracy`, they override the chosen settings.
+        **backend_options: the backend's options (e.g. ``lod="5k"``), checked against its typed model
+            (`rtchannel.backends.options`: names, types, ranges; docs/backend_options.md); with `accuracy`,
+            they override the chosen settings.
 
     Returns:
         `PathSets` (one `PathSet` per link name).
     """
     radar = RadarConfig() if radar is None else radar
-    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
+    backend_options = validate_options(backend, backend_options)  # the backend's options model
     backend_options, record, stats = _budgeted(motion, radar, backend, backend_options, accuracy, calibration)
     if record is not None:  # the table's options are checked like the user's
-        validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
+        backend_options = validate_options(backend, backend_options)
     scene = _scene_for(motion, backend, scene, chair)
     if scene is not None:
         backend_options["scene"] = scene
