@@ -56,6 +56,14 @@ _EXPORTS = {
     "plot_range_doppler": ("processing.plots.signatures", "plot_range_doppler"),
     "save_figure": ("processing.plots.signatures", "save_figure"),
     "save_figures": ("processing.plots.signatures", "save_figures"),
+    # datasets and the classifier: what `rtchannel dataset / train / evaluate / crossval` run
+    "build_dataset": ("rtchannel.dataset.build", "build_dataset"),
+    "plan_dataset": ("rtchannel.dataset.build", "plan_dataset"),
+    "load_dataset": ("processing.classifier.experiment", "load_dataset"),
+    "train_classifier": ("processing.classifier.experiment", "train_classifier"),
+    "evaluate_classifier": ("processing.classifier.experiment", "evaluate_classifier"),
+    "crossvalidate": ("processing.classifier.experiment", "crossvalidate"),
+    "read_crossval_plan": ("processing.classifier.experiment", "read_crossval_plan"),
     # deprecated names, kept for one release (each warns when called)
     "load_signatures": ("rtchannel.results", "load_signatures"),  # -> SimulationResult.load(path)
     "plot_signatures": ("processing.plots.signatures", "plot_all"),  # -> save_figures(sigs, out_dir)

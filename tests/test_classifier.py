@@ -45,7 +45,9 @@ def tiny_dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("clf")
     plan = root / "plan.yaml"
     plan.write_text(PLAN)
-    assert main(["dataset", "--config", str(plan), "--out", str(root / "ds"), "--workers", "1", "--quiet"]) == 0
+    from rtchannel import build_dataset  # what `rtchannel dataset --config PLAN --out DIR` runs
+
+    assert build_dataset(plan, root / "ds", workers=1).complete
     return root / "ds"
 
 
@@ -404,3 +406,42 @@ def test_window_weighs_motion_by_column_power_when_noise_passes_the_valid_mask()
     assert x.shape == (1, 64, 64) and np.isfinite(x).all()
     with pytest.raises(ValueError, match="power has 3 time bins"):
         preprocess_links({"r": {**sample["r"], "power": np.ones(3)}}, ["r"], cfg)
+
+
+def test_library_training_is_the_clis_and_can_start_from_a_checkpoint(tiny_dataset, tmp_path):
+    """`train_classifier` is what `rtchannel train` runs (same weights for the same settings and seed), takes
+    several datasets, starts from a checkpoint's weights (`init=`) and is called in a loop from Python."""
+    from processing.classifier import load_checkpoint
+    from processing.errors import InputError
+    from rtchannel import evaluate_classifier, train_classifier
+
+    pre = PreprocessConfig(n_velocity=32, n_time=32)
+    mcfg = ModelConfig(input_size=(32, 32), padding="same")
+    cfg = TrainConfig(epochs=2, group_split=False, threads=1, seed=2)
+    lib = train_classifier(str(tiny_dataset), preprocess=pre, model=mcfg, train_config=cfg)
+    assert main(["train", "--data", str(tiny_dataset), "--out", str(tmp_path / "cli.pt"), "--epochs", "2",
+                 "--no-group-split", "--threads", "1", "--seed", "2", *SMALL]) == 0
+    cli = load_checkpoint(tmp_path / "cli.pt")
+    for (k, a), b in zip(lib.classifier.model.state_dict().items(), cli.model.state_dict().values()):
+        assert torch.equal(a, b), k
+    assert lib.meta["n_train"] + lib.meta["n_val"] == 120 and "validation accuracy" in repr(lib)
+    # several datasets are one training set
+    halves = [f"{tiny_dataset}:direction=1|4|7", f"{tiny_dataset}:direction=10|13|16"]
+    both = train_classifier(halves, preprocess=pre, model=mcfg, train_config=cfg)
+    assert both.meta["n_train"] + both.meta["n_val"] == 120 and " + " in both.meta["train_spec"]
+    # init: training starts from the given weights (a learning rate of 1e-12 leaves them where they were)
+    lib.save(tmp_path / "lib.pt")
+    still = TrainConfig(epochs=1, group_split=False, threads=1, seed=5, lr=1e-12)
+    for init in (lib.classifier, tmp_path / "lib.pt"):
+        tuned = train_classifier(halves[0], preprocess=pre, model=mcfg, train_config=still, init=init)
+        w0, w1 = (c.model.mlp[0].weight for c in (lib.classifier, tuned.classifier))
+        np.testing.assert_allclose(w1.detach().numpy(), w0.detach().numpy(), rtol=0, atol=1e-9)
+    scratch = train_classifier(halves[0], preprocess=pre, model=mcfg, train_config=still)
+    assert not torch.allclose(scratch.classifier.model.mlp[0].weight, lib.classifier.model.mlp[0].weight)
+    with pytest.raises(InputError, match="init: the checkpoint's network"):
+        train_classifier(halves[0], links=["radar1"], preprocess=pre, train_config=still, init=lib.classifier,
+                         model=mcfg.model_copy(update={"n_branches": 1}))
+    ev = evaluate_classifier(tmp_path / "lib.pt", f"{tiny_dataset}:activity=walk|fall")
+    assert ev.report.n == 48 and ev.title.startswith("lib.pt on ")
+    assert sorted(p.name for p in ev.save(tmp_path / "ev")) == ["confusion.csv", "confusion.png", "metrics.json",
+                                                                 "predictions.csv"]

@@ -38,13 +38,11 @@ def cmd_dataset(args) -> int:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     if args.retries < 0:
         raise UserError(f"--retries must be >= 0, got {args.retries}")
-    from rtchannel.dataset.plan import expand, load_plan, resolve_config
+    from rtchannel.dataset.build import build_dataset, plan_dataset
     from rtchannel.errors import InputError
 
     try:
-        path = resolve_config(args.config)
-        plan = load_plan(path, backend=args.backend)
-        items = expand(plan, fetch=not args.dry_run)  # counting downloads nothing
+        plan, items = plan_dataset(args.config, backend=args.backend, fetch=not args.dry_run)  # counting downloads nothing
     except ValidationError as e:
         raise UserError(validation_line(e, f"plan {args.config}")) from None
     except InputError as e:
@@ -60,13 +58,13 @@ def cmd_dataset(args) -> int:
         print(f"{plan.name}: {len(items)} items ({', '.join(f'{k}={v}' for k, v in sorted(c.items()))}), "
               f"{len({it.group for it in items})} motion groups, backend {plan.backend}")
         return 0
-    from rtchannel.dataset.runner import PlanMismatchError, run_plan
+    from rtchannel.dataset.runner import PlanMismatchError
 
     check_output(args.out, "dir")  # after the plan is valid: a bad plan leaves no folder behind
 
     try:
-        s = run_plan(plan, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
-                     progress=not args.quiet)
+        s = build_dataset(plan, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
+                          progress=not args.quiet)
     except (PlanMismatchError, BlockingIOError) as e:
         raise UserError(str(e)) from None
     except (OSError, TimeoutError) as e:
