@@ -30,3 +30,14 @@ def glasgow_dir(tmp_path_factory):
     from thirdparty import glasgow_folder
 
     return glasgow_folder(tmp_path_factory.mktemp("glasgow"))
+
+
+def pytest_terminal_summary(terminalreporter):
+    """How many generated inputs each fuzz test accepted (tests/fuzz_tally.py)."""
+    from fuzz_tally import summary
+
+    lines = summary()
+    if lines:
+        terminalreporter.section("fuzz tests: accepted inputs")
+        for line in lines:
+            terminalreporter.write_line(line)
