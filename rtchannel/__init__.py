@@ -67,6 +67,7 @@ _EXPORTS = {
     # deprecated names, kept for one release (each warns when called)
     "load_signatures": ("rtchannel.results", "load_signatures"),  # -> SimulationResult.load(path)
     "plot_signatures": ("processing.plots.signatures", "plot_all"),  # -> save_figures(sigs, out_dir)
+    "fetch": ("rtchannel.data_registry", "fetch"),  # third-party data (motion capture, real images) on demand
     "BACKENDS": ("rtchannel.backends", "BACKENDS"),
     "ACTIVITIES": ("processing.labels", "ACTIVITIES"),
 }

@@ -133,8 +133,13 @@ class RadarConfig(BaseModel):
 
     @classmethod
     def seed(cls, direction: int = 1, **overrides) -> "RadarConfig":
-        """The seed's 2x2 distributed MIMO radar (two monostatic Ancortek radars, 24.125 GHz) rotated for
-        the seed's direction 1..18; `overrides` replace fields (e.g. ``waveform=Waveform(...)``)."""
+        """The seed's 2x2 distributed MIMO radar (two monostatic Ancortek radars, 24.125 GHz) turned for one of
+        the seed's directions.
+
+        Args:
+            direction: the seed's direction 1..18 (Radar 1 at 20 (k - 1) degrees).
+            **overrides: RadarConfig fields to replace (e.g. ``waveform=Waveform(...)``, ``receiver=None``).
+        """
         return cls(**overrides).for_direction(direction)
 
     @classmethod
@@ -186,16 +191,24 @@ class RadarConfig(BaseModel):
 
     @classmethod
     def from_file(cls, path: str | Path) -> "RadarConfig":
-        """Load from the YAML or JSON file `path`; raises pydantic's ValidationError naming a bad field, or
+        """Load a radar from a file; raises pydantic's ValidationError naming a bad field, or
         `rtchannel.errors.ConfigError` (one line naming the file and line) for syntax errors, alias bombs and
-        non-mappings (`rtchannel.safe_yaml`)."""
+        non-mappings (`rtchannel.safe_yaml`).
+
+        Args:
+            path: a YAML or JSON file of RadarConfig fields (waveform, dsp, links, antenna, receiver).
+        """
         from rtchannel.safe_yaml import read_yaml_mapping
 
         data = read_yaml_mapping(Path(path), "radar config", max_bytes=1_000_000)  # a radar is a few hundred bytes
         return cls.model_validate(data or {})
 
     def rotated(self, angle_deg: float) -> "RadarConfig":
-        """All antennas rotated by `angle_deg` (counter-clockwise seen from above) about the vertical z axis."""
+        """All antennas (positions and patterns) rotated about the vertical z axis.
+
+        Args:
+            angle_deg: rotation [deg], counter-clockwise seen from above.
+        """
         a = np.deg2rad(angle_deg)
         rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
 
@@ -211,12 +224,21 @@ class RadarConfig(BaseModel):
                                        "orientation_deg": wrap_deg(self.orientation_deg + angle_deg)})
 
     def antennas(self, link: Link) -> tuple:
-        """(transmit, receive) antenna patterns of `link` (its own, else the radar's)."""
+        """(transmit, receive) antenna patterns of a link (its own, else the radar's).
+
+        Args:
+            link: one of this radar's `Link`s.
+        """
         return (link.tx_antenna or self.antenna, link.rx_antenna or self.antenna)
 
     def link_gain(self, link: Link, tx_targets: np.ndarray, rx_targets: np.ndarray | None = None) -> np.ndarray:
-        """Antenna amplitude factor sqrt(G_tx G_rx) [...] of paths of `link` leaving the transmitter towards
-        `tx_targets` [..., 3] (m) and reaching the receiver from `rx_targets` (default the same points)."""
+        """Antenna amplitude factor sqrt(G_tx G_rx) [...] float64 of paths of a link.
+
+        Args:
+            link: one of this radar's `Link`s.
+            tx_targets: points [..., 3] float (m) the paths leave the transmitter towards.
+            rx_targets: points [..., 3] float (m) the paths reach the receiver from (default `tx_targets`).
+        """
         from processing.radar.antenna import link_gain
 
         tx_ant, rx_ant = self.antennas(link)
@@ -225,7 +247,11 @@ class RadarConfig(BaseModel):
         return link_gain(tx_ant, link.tx_pos, rx_ant, link.rx_pos, tx_targets, rx_targets)
 
     def for_direction(self, direction: int) -> "RadarConfig":
-        """The radar set rotated for the seed's direction 1..18 (Radar 1 at 20 (k - 1) degrees)."""
+        """The radar set rotated for one of the seed's directions.
+
+        Args:
+            direction: 1..18 (Radar 1 at 20 (k - 1) degrees).
+        """
         return self.rotated(direction_angles(direction)[0])
 
 

@@ -140,7 +140,11 @@ class DSPConfig(BaseModel):
         return self.window_chirps if self.fft_points is None else self.fft_points
 
     def rd_stride(self, pri_s: float) -> int:
-        """Windows between stored range-Doppler maps at chirp interval `pri_s` [s] (see `range_doppler_stride`)."""
+        """Windows between stored range-Doppler maps (see `range_doppler_stride`).
+
+        Args:
+            pri_s: the chirp interval [s].
+        """
         if self.range_doppler_stride is not None:
             return self.range_doppler_stride
         no_overlap = -(-self.window_chirps // self.hop_chirps)

@@ -106,5 +106,9 @@ class Waveform(BaseModel):
         return self.fs / self.slope
 
     def velocity_resolution(self, window_chirps: int) -> float:
-        """Velocity-bin spacing lambda / (2 W PRI) [m/s] of a slow-time FFT over `window_chirps` (W) chirps."""
+        """Velocity-bin spacing lambda / (2 W PRI) [m/s] of a slow-time FFT.
+
+        Args:
+            window_chirps: the FFT's window W [chirps].
+        """
         return self.wavelength / (2 * window_chirps * self.pri_s)
