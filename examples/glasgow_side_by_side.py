@@ -3,8 +3,8 @@
     python examples/glasgow_side_by_side.py [REAL_IMAGE] [OUT_PNG]
 
 Defaults: the real walk 1P36A01R01.png of the Glasgow dataset (through the data registry: mirror, cache or
-download) and glasgow_side_by_side.png in a new temporary folder (never the checkout; the figure in
-docs/img/ was made by passing that path).
+download) and glasgow_side_by_side.png in a new temporary folder (never the checkout; the documentation's
+figure was made by passing its path).
 The simulated walk is built as the `glasgow` dataset preset builds its walks: a procedural walk of
 2.4 m at 1.1 m/s, three legs (toward, away from, toward the radar) joined by 0.7 s turns, in a 10 s
 clip; Radar.glasgow at 3 m distance and 1 m height, points backend, the kit's receiver noise.
