@@ -11,56 +11,10 @@ from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, Tr
                                    classification_report, confusion_matrix, load_checkpoint, preprocess,
                                    save_checkpoint, split_indices, train)
 from processing.classifier.metrics import plot_confusion, write_confusion_csv
-from processing.classifier.training import dataset_arrays
 from processing.io.dataset_store import ACTIVITIES
-from processing.io.dataset_reader import DatasetReader
 from rtchannel.cli import main
 
-PLAN = """
-name: tiny
-seed: 11
-backend: points
-motion:
-  fps: 30
-  sources:
-    - {procedural: fall, variants: 2, params: {duration: [1.0, 1.4], pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: walk, variants: 2, params: {speed: [1.1, 1.4], distance: 2.0, pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: stand, variants: 2, params: {duration: [1.4, 1.8], pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: sit, variants: 2, params: {duration: [1.6, 2.0], pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: pick, variants: 2, params: {duration: [2.0, 2.4], pad_before: 0.2, pad_after: 0.2}}
-  heights: [1.6, 1.8]
-physical:
-  directions: [1, 4, 7, 10, 13, 16]
-signal:
-  gain_sets: [{name: seed}]
-storage:
-  items_per_shard: 12
-"""
 SMALL = ["--size", "32", "32", "--padding", "same", "--quiet"]
-
-
-@pytest.fixture(scope="session")
-def tiny_dataset(tmp_path_factory):
-    """5 classes x 2 motions x 2 heights x 6 directions = 120 items (points backend, ~20 s)."""
-    root = tmp_path_factory.mktemp("clf")
-    plan = root / "plan.yaml"
-    plan.write_text(PLAN)
-    from rtchannel import build_dataset  # what `rtchannel dataset --config PLAN --out DIR` runs
-
-    assert build_dataset(plan, root / "ds", workers=1).complete
-    return root / "ds"
-
-
-@pytest.fixture(scope="session")
-def trained(tiny_dataset):
-    reader = DatasetReader(tiny_dataset)
-    pre = PreprocessConfig(n_velocity=32, n_time=32)
-    x, y, groups = dataset_arrays(reader, range(len(reader)), ["radar1", "radar2"], pre)
-    mcfg = ModelConfig(input_size=(32, 32), padding="same")
-    # batch 8 and no early stop: on 96 items BatchNorm's running statistics lag the weights for ~8 epochs
-    cfg = TrainConfig(epochs=15, patience=15, batch_size=8, group_split=False, seed=3, threads=1)
-    res = train(x, y, mcfg, cfg, progress=False, log=None)
-    return reader, pre, x, y, res
 
 
 def test_preprocess_fixed_size_and_scaling():
@@ -417,9 +371,9 @@ def test_library_training_is_the_clis_and_can_start_from_a_checkpoint(tiny_datas
 
     pre = PreprocessConfig(n_velocity=32, n_time=32)
     mcfg = ModelConfig(input_size=(32, 32), padding="same")
-    cfg = TrainConfig(epochs=2, group_split=False, threads=1, seed=2)
+    cfg = TrainConfig(epochs=1, group_split=False, threads=1, seed=2)
     lib = train_classifier(str(tiny_dataset), preprocess=pre, model=mcfg, train_config=cfg)
-    assert main(["train", "--data", str(tiny_dataset), "--out", str(tmp_path / "cli.pt"), "--epochs", "2",
+    assert main(["train", "--data", str(tiny_dataset), "--out", str(tmp_path / "cli.pt"), "--epochs", "1",
                  "--no-group-split", "--threads", "1", "--seed", "2", *SMALL]) == 0
     cli = load_checkpoint(tmp_path / "cli.pt")
     for (k, a), b in zip(lib.classifier.model.state_dict().items(), cli.model.state_dict().values()):
@@ -432,14 +386,17 @@ def test_library_training_is_the_clis_and_can_start_from_a_checkpoint(tiny_datas
     # init: training starts from the given weights (a learning rate of 1e-12 leaves them where they were)
     lib.save(tmp_path / "lib.pt")
     still = TrainConfig(epochs=1, group_split=False, threads=1, seed=5, lr=1e-12)
+    from processing.classifier.experiment import load_dataset
+
+    half = load_dataset(halves[0], preprocess=pre)  # loaded once, trained on in a loop
     for init in (lib.classifier, tmp_path / "lib.pt"):
-        tuned = train_classifier(halves[0], preprocess=pre, model=mcfg, train_config=still, init=init)
+        tuned = train_classifier(half, preprocess=pre, model=mcfg, train_config=still, init=init)
         w0, w1 = (c.model.mlp[0].weight for c in (lib.classifier, tuned.classifier))
         np.testing.assert_allclose(w1.detach().numpy(), w0.detach().numpy(), rtol=0, atol=1e-9)
-    scratch = train_classifier(halves[0], preprocess=pre, model=mcfg, train_config=still)
+    scratch = train_classifier(half, preprocess=pre, model=mcfg, train_config=still)
     assert not torch.allclose(scratch.classifier.model.mlp[0].weight, lib.classifier.model.mlp[0].weight)
     with pytest.raises(InputError, match="init: the checkpoint's network"):
-        train_classifier(halves[0], links=["radar1"], preprocess=pre, train_config=still, init=lib.classifier,
+        train_classifier(half, links=["radar1"], preprocess=pre, train_config=still, init=lib.classifier,
                          model=mcfg.model_copy(update={"n_branches": 1}))
     ev = evaluate_classifier(tmp_path / "lib.pt", f"{tiny_dataset}:activity=walk|fall")
     assert ev.report.n == 48 and ev.title.startswith("lib.pt on ")
