@@ -10,6 +10,7 @@ DSP (`processing.dsp`); the fast-time model both use sits below them (`processin
 """
 from __future__ import annotations
 
+import os
 import time
 import warnings
 from dataclasses import replace
@@ -158,7 +159,7 @@ def _scene_for(motion: Motion, backend: str, scene, chair: str):
         if scene is not None and str(scene) != "free_space":
             warnings.warn(f"the {backend} backend is a free-space model: scene '{scene}' is not used", stacklevel=3)
         return None
-    if scene is None or isinstance(scene, str) or hasattr(scene, "with_chair_for"):
+    if scene is None or isinstance(scene, (str, os.PathLike)) or hasattr(scene, "with_chair_for"):
         from rtchannel.scene.spec import Scene
 
         try:
