@@ -68,3 +68,24 @@ def test_the_call_path_goes_from_synthesis_to_dsp_once(synthesis):
     fast-time functions, chunk by chunk); now it is synthesis, then DSP."""
     path = _crossings_script().stage_path("points", synthesis)
     assert [stage for stage, _ in path] == ["synthesis", "dsp"], path
+
+
+def test_simulate_radars_is_built_on_trace_with_its_progress_and_warnings():
+    """One `trace` for all radars, then `synthesise` per radar: the points backend's scene warning comes through,
+    progress counts every radar's chirps, and each result equals the radar's own `simulate`."""
+    import warnings
+
+    from rtchannel import Scene, simulate, simulate_radars
+
+    motion = Motion.procedural("fall", seed=3)
+    radars = [Radar.seed(direction=d) for d in (1, 7)]
+    done = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        results = simulate_radars(motion, radars, "points", scene=Scene.room(), progress=done.append)
+    assert any("free-space model" in str(w.message) for w in caught)
+    n_chirps = sum(r.links[name].chirp_times.size for r in results for name in r.links)
+    assert sum(done) == n_chirps > 0
+    for radar, res in zip(radars, results):
+        alone = simulate(motion, radar, "points")
+        assert res.links == alone.links and res.config["traced_with_radars"] == 2
