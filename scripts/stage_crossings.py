@@ -9,7 +9,8 @@ the neutral fast-time model, numpy, ...) are transparent, and so is the DSP's se
 (`processing.dsp.config`: `DSPConfig` and the pre-flight `check_recording`), which is what is followed,
 not a stage it passes through. The path is the sequence of those labels with
 repeats merged; a crossing is one change of label. Data flowing one way, radar -> synthesis -> dsp, gives
-exactly one crossing (synthesis, then dsp); every further one is the call path turning back.
+exactly one crossing (synthesis, then dsp); every further one is the call path turning back. Before the
+fast-time model moved to `processing.fast_time` (commit a23fed9) this counted 15 (exact) and 17 (grid).
 """
 from __future__ import annotations
 

@@ -64,8 +64,8 @@ def _crossings_script():
 
 @pytest.mark.parametrize("synthesis", ["exact", "grid"])
 def test_the_call_path_goes_from_synthesis_to_dsp_once(synthesis):
-    """Before the fast-time model had a neutral home the path turned 17 times (synthesis called the DSP's
-    fast-time functions, chunk by chunk); now it is synthesis, then DSP."""
+    """Before the fast-time model had a neutral home the path turned 15 times on the exact route and 17 on the
+    gridded one (synthesis called the DSP's fast-time functions, chunk by chunk); now it is synthesis, then DSP."""
     path = _crossings_script().stage_path("points", synthesis)
     assert [stage for stage, _ in path] == ["synthesis", "dsp"], path
 
