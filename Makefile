@@ -15,8 +15,10 @@ demo: env
 	done
 	@echo "signatures and plots are in $(OUT)/<activity>/"
 
+# every test, in two processes (pytest-xdist, one per core; a file's tests stay in one process so that its
+# fixtures are made once); `-m "not slow"` for a quick run while working
 test: env
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: env
 	$(BIN)/python benchmarks/bench_points.py

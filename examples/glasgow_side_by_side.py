@@ -3,12 +3,14 @@
     python examples/glasgow_side_by_side.py [REAL_IMAGE] [OUT_PNG]
 
 Defaults: the real walk 1P36A01R01.png of the Glasgow dataset (through the data registry: mirror, cache or
-download) and docs/img/glasgow_side_by_side.png.
+download) and glasgow_side_by_side.png in a new temporary folder (never the checkout; the documentation's
+figure was made by passing its path).
 The simulated walk is built as the `glasgow` dataset preset builds its walks: a procedural walk of
 2.4 m at 1.1 m/s, three legs (toward, away from, toward the radar) joined by 0.7 s turns, in a 10 s
 clip; Radar.glasgow at 3 m distance and 1 m height, points backend, the kit's receiver noise.
 """
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -21,9 +23,8 @@ from rtchannel.data_registry import fetch
 from rtchannel.motion.compose import back_and_forth, fit_clip
 from rtchannel.radar import Radar
 
-ROOT = Path(__file__).resolve().parents[1]
 real = Path(sys.argv[1]) if len(sys.argv) > 1 else fetch("realdata/glasgow848/1Dataset/1P36A01R01.png")
-out = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT / "docs/img/glasgow_side_by_side.png"
+out = Path(sys.argv[2]) if len(sys.argv) > 2 else Path(tempfile.mkdtemp(prefix="rtchannel-")) / "glasgow_side_by_side.png"
 
 leg = Motion.procedural("walk", height=1.74, speed=1.1, distance=2.4, pad_before=0.1, pad_after=0.1, seed=3)
 walk = back_and_forth(leg, legs=3, turn_s=0.7)

@@ -97,3 +97,48 @@ class PathSet:
     @property
     def persistent(self) -> bool:
         return self.ids is not None
+
+    def __repr__(self) -> str:
+        k, p = self.delays.shape
+        span = f"{self.times[0]:.3g}-{self.times[-1]:.3g} s" if k else "no frames"
+        present = self.gains != 0
+        kind = "persistent ids" if self.persistent else "frame-local"
+        if present.any():
+            tau = self.delays[present]
+            power = np.abs(self.gains[present]) ** 2
+            values = (f"; delays {tau.min() * 1e9:.3g}-{tau.max() * 1e9:.3g} ns, |a|^2 "
+                      f"{10 * np.log10(power.max()):.1f} dB (P_r/P_t) at most, {present.mean():.0%} of entries present")
+        else:
+            values = "; no path present"
+        return f"<PathSet {self.link!r}: {k} frames ({span}) x {p} paths ({kind}){values}>"
+
+    def __eq__(self, other) -> bool:
+        """Bit-for-bit equality of every array (NaN delays of absent paths compare equal) and the link name."""
+        if not isinstance(other, PathSet):
+            return NotImplemented
+        return self.link == other.link and all(_same_bits(getattr(self, f), getattr(other, f))
+                                               for f in ("times", "delays", "gains", "ids", "delay_rates"))
+
+    __hash__ = None  # mutable arrays: not hashable
+
+    def to_xarray(self):
+        """The paths as an `xarray.Dataset`: ``delay`` [s] and ``gain`` (complex, |a|^2 = P_r/P_t) over
+        (time [s], path), ``delay_rate`` [s/s] when given; the path coordinate holds the ids (persistent sets)
+        or the column index (frame-local sets)."""
+        import xarray as xr
+
+        path = self.ids if self.ids is not None else np.arange(self.n_paths)
+        data = {"delay": (("time", "path"), self.delays, {"units": "s"}),
+                "gain": (("time", "path"), self.gains, {"units": "1", "long_name": "amplitude, |a|^2 = P_r/P_t"})}
+        if self.delay_rates is not None:
+            data["delay_rate"] = (("time", "path"), self.delay_rates, {"units": "s/s"})
+        return xr.Dataset(data, coords={"time": ("time", self.times, {"units": "s"}), "path": path},
+                          attrs={"link": self.link, "persistent": int(self.persistent)})
+
+
+def _same_bits(a, b) -> bool:
+    """Both None, or arrays of one dtype and shape holding the same bytes."""
+    if a is None or b is None:
+        return a is None and b is None
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()

@@ -10,7 +10,10 @@ The public API (few nouns, one `simulate`)::
     result.signatures["radar1"].p_vt                              # p(v, t), eq. 7
     channel = trace(motion, radar, backend="facets")              # the path sets per link, then
     result = synthesise(channel)                                  # raw IQ and signatures (= simulate)
-    result.save("out/signature.h5"); result.plot("out/")
+    result.save("out/signature.h5"); result.save_figures("out/")  # SimulationResult.load reads it back
+    fig = result.plot(ax=None, kind="pvt")                        # draw (onto your Axes with ax=)
+    result = synthesise(channel, dsp=DSPConfig(window_chirps=128), keep_iq=True)   # other DSP, same channel
+    sigs = process(result.iq, radar)                              # stored raw IQ -> signatures
     results = simulate_radars(motion, [Radar.seed(direction=d) for d in range(1, 19)], backend="facets")
                                                                   # 18 directions, body traced once per frame
 
@@ -43,16 +46,31 @@ _EXPORTS = {
     "synthesise": ("rtchannel.pipeline", "synthesise"),
     "simulate": ("rtchannel.pipeline", "simulate"),
     "simulate_radars": ("rtchannel.pipeline", "simulate_radars"),
-    "PathSets": ("rtchannel.pipeline", "PathSets"),
+    "process": ("rtchannel.pipeline", "process"),
+    "PathSets": ("rtchannel.results", "PathSets"),
     "PathSet": ("processing.pathset", "PathSet"),
-    "SimulationResult": ("rtchannel.pipeline", "SimulationResult"),
+    "SimulationResult": ("rtchannel.results", "SimulationResult"),
+    "LinkResult": ("rtchannel.results", "LinkResult"),
     "Signature": ("processing.dsp.signatures", "Signature"),
-    # files and figures
-    "load_signatures": ("processing.io.signature_file", "read_signature_file"),
-    "plot_signatures": ("processing.plots.signatures", "plot_all"),
+    # figures: plot_* draw onto ax= and return the Figure; writing files is save_figure / save_figures
     "plot_pvt": ("processing.plots.signatures", "plot_pvt"),
     "plot_mean_velocity": ("processing.plots.signatures", "plot_mean_velocity"),
     "plot_range": ("processing.plots.signatures", "plot_range"),
+    "plot_range_doppler": ("processing.plots.signatures", "plot_range_doppler"),
+    "save_figure": ("processing.plots.signatures", "save_figure"),
+    "save_figures": ("processing.plots.signatures", "save_figures"),
+    # datasets and the classifier: what `rtchannel dataset / train / evaluate / crossval` run
+    "build_dataset": ("rtchannel.dataset.build", "build_dataset"),
+    "plan_dataset": ("rtchannel.dataset.build", "plan_dataset"),
+    "load_dataset": ("processing.classifier.experiment", "load_dataset"),
+    "train_classifier": ("processing.classifier.experiment", "train_classifier"),
+    "evaluate_classifier": ("processing.classifier.experiment", "evaluate_classifier"),
+    "crossvalidate": ("processing.classifier.experiment", "crossvalidate"),
+    "read_crossval_plan": ("rtchannel.dataset.build", "read_crossval_plan"),
+    # deprecated names, kept for one release (each warns when called)
+    "load_signatures": ("rtchannel.results", "load_signatures"),  # -> SimulationResult.load(path)
+    "plot_signatures": ("processing.plots.signatures", "plot_all"),  # -> save_figures(sigs, out_dir)
+    "fetch": ("rtchannel.data_registry", "fetch"),  # third-party data (motion capture, real images) on demand
     "BACKENDS": ("rtchannel.backends", "BACKENDS"),
     "ACTIVITIES": ("processing.labels", "ACTIVITIES"),
 }

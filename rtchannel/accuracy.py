@@ -45,7 +45,7 @@ import json
 import math
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from processing.errors import InputError
 
@@ -68,6 +68,13 @@ class CalibrationRow(BaseModel):
     emd_sem_m_s: dict[str, float] = Field(default_factory=dict, description="standard error over seeds")
     role: str = Field("candidate", description="default, exact, candidate, points, or measured (in the table "
                       "for the record, never chosen)")
+
+    @model_validator(mode="after")
+    def _options_fit_the_backend(self) -> "CalibrationRow":
+        from rtchannel.backends.options import validate_options
+
+        validate_options(self.backend, self.options)  # the backend's typed options model
+        return self
 
     def error(self, activity: str | None) -> float:
         """Calibrated EMD [m/s] for `activity` (the worst activity if it was not calibrated)."""

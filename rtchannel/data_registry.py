@@ -144,10 +144,15 @@ def how_to_get(relpath: str) -> str:
 
 
 def fetch(relpath: str, *, download: bool = True, progress: bool = False) -> Path:
-    """Local path of the registered file `relpath`, downloading it into the cache if needed.
+    """Local path of a registered third-party file, downloading it into the cache if needed.
 
     Raises DataUnavailableError (one line saying how to get it) when it is in neither the mirror nor the
     cache and `download` is False or the download fails; InputError for a path that is not registered.
+
+    Args:
+        relpath: the file's path in the registry (e.g. "mocap/cmu/sit/75_17.bvh"; `rtchannel data list`).
+        download: fetch it from its origin when neither the mirror nor the cache has it.
+        progress: show a download progress bar.
     """
     found = local_path(relpath)
     if found is not None:

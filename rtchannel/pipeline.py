@@ -1,93 +1,31 @@
-"""One simulation: motion -> backend paths -> shared FMCW synthesiser -> DSP signatures, per link.
+"""One simulation: motion -> backend paths (the channel) -> shared FMCW synthesiser -> DSP signatures, per link.
 
-`simulate` is the library's single entry point (also exported as `rtchannel.simulate`); the CLI, the
-dataset runner and the analysis tools all go through it.
+The chain in three steps, each a public function (exported by `rtchannel`): `trace` (motion and radar to
+the channel, `PathSets`), `synthesise` (channel to raw IQ and signatures, `SimulationResult`; DSP settings
+given here, default the radar's) and `process` (stored raw IQ to signatures: reprocessing). `simulate` is
+`synthesise(trace(...))` and `simulate_radars` traces once for several radars and synthesises each; the CLI,
+the dataset runner and the analysis tools all go through them. Settings flow one way: the radar's waveform
+and the DSP settings go into synthesis (`processing.synthesis`), whose fast-time projection goes into the
+DSP (`processing.dsp`); the fast-time model both use sits below them (`processing.fast_time`).
 """
 from __future__ import annotations
 
+import os
 import time
 import warnings
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 
+from processing.dsp.config import DSPConfig, check_recording
 from processing.dsp.signatures import Signature, signatures, signatures_from_projection
-from processing.dsp.config import check_recording
+from processing.errors import InputError
 from processing.pathset import PathSet
-from rtchannel.backends import MESH_BACKENDS, RESERVED_OPTIONS, backend_function, validate_options
+from rtchannel.backends import MESH_BACKENDS, backend_function, validate_options
 from rtchannel.motion.pose import Motion
 from rtchannel.radar import RadarConfig
-from processing.errors import InputError
-
-
-@dataclass
-class LinkResult:
-    """Raw IQ (if kept) and signatures of one link; chirp start times [s]."""
-
-    signature: Signature
-    chirp_times: np.ndarray
-    iq: np.ndarray | None = None
-
-
-@dataclass
-class SimulationResult:
-    """Per-link results, the wall-clock split [s] between backend, synthesis and DSP, and every
-    parameter that produced them (`config`, JSON-serialisable; stored by `save`)."""
-
-    links: dict[str, LinkResult]
-    timing: dict[str, float] = field(default_factory=dict)
-    config: dict = field(default_factory=dict)
-
-    @property
-    def signatures(self) -> dict[str, Signature]:
-        """{link name: Signature} (p(v,t), mean velocity, range distribution, ...)."""
-        return {name: r.signature for name, r in self.links.items()}
-
-    @property
-    def iq(self) -> dict[str, np.ndarray]:
-        """{link name: raw IQ [chirps, samples] complex64} of the links whose IQ was kept (`keep_iq`)."""
-        return {name: r.iq for name, r in self.links.items() if r.iq is not None}
-
-    def save(self, path: str | Path, seed: int | None = None) -> Path:
-        """Write `signature.h5` (DESIGN.md layout, atomically) with the parameters that made it; the raw IQ
-        is stored for links that kept it.
-
-        Args:
-            path: the file to write.
-            seed: the root attribute ``seed`` (default: the motion's seed).
-
-        Returns:
-            `path`.
-        """
-        from processing.io.signature_file import write_signature_file
-
-        cfg = self.config
-        radar = cfg.get("radar", {})
-        links = {lk["name"]: lk for lk in radar.get("links", [])}
-        link_attrs = {n: {"tx": np.asarray(lk["tx"], float),
-                          "rx": np.asarray(lk["tx"] if lk.get("rx") is None else lk["rx"], float)}
-                      for n, lk in links.items()}
-        motion = cfg.get("motion", {})
-        return write_signature_file(
-            path, self.signatures, activity=cfg.get("activity", ""), backend=cfg.get("backend", ""),
-            seed=int(motion.get("seed", 0) if seed is None else seed),
-            direction_deg=float(radar.get("orientation_deg", 0.0)), config=cfg, link_attrs=link_attrs,
-            iq=self.iq or None)
-
-    def plot(self, out_dir: str | Path, title: str | None = None) -> list[Path]:
-        """PNG figures (p(v,t), mean velocity, range-time) into `out_dir`; returns their paths.
-
-        Args:
-            out_dir: folder to write into.
-            title: figure title (default: activity, backend and radar orientation).
-        """
-        from processing.plots.signatures import plot_all
-
-        if title is None:
-            c = self.config
-            title = f"{c.get('activity', '')} ({c.get('backend', '')}, {c.get('radar', {}).get('orientation_deg', 0):g} deg)"
-        return plot_all(self.signatures, Path(out_dir), title=title)
+from rtchannel.results import LinkResult, PathSets, SimulationResult
+from rtchannel.scene.chair_fit import DEFAULT_CHAIR
 
 
 def backend_paths(motion: Motion, radar: RadarConfig, backend: str = "points", **options) -> dict[str, PathSet]:
@@ -215,31 +153,29 @@ def _motion_seed(motion_params: dict) -> int:
     return int(motion_params.get("seed", 0) or 0)
 
 
-@dataclass
-class PathSets:
-    """The channel between motion and radar: one `PathSet` per link (delays [s], complex gains with
-    |a|^2 = P_r/P_t, path ids, delay rates [s/s] at frame times [s]), the radar whose links they belong to,
-    and what made them (`config`: motion, backend, options; `timing` [s]). `trace` makes it, `synthesise`
-    turns it into raw IQ and signatures, so a channel can be stored, inspected or synthesised for several
-    waveforms and DSP settings of the same antennas."""
+def _scene_for(motion: Motion, backend: str, scene, chair: str):
+    """The scene the backend traces: for the mesh backends `scene` plus the chair `chair` asks for
+    (`Scene.for_motion`); the points backend is free space (a warning when given another scene)."""
+    from rtchannel.scene.chair_fit import CHAIR_MODES
 
-    paths: dict[str, PathSet]
-    radar: RadarConfig
-    config: dict = field(default_factory=dict)
-    timing: dict[str, float] = field(default_factory=dict)
+    if chair not in CHAIR_MODES:
+        raise InputError(f"chair must be one of {', '.join(CHAIR_MODES)}, got {chair!r}")
+    if backend not in MESH_BACKENDS:
+        if scene is not None and str(scene) != "free_space":
+            warnings.warn(f"the {backend} backend is a free-space model: scene '{scene}' is not used", stacklevel=3)
+        return None
+    if scene is None or isinstance(scene, (str, os.PathLike)) or hasattr(scene, "with_chair_for"):
+        from rtchannel.scene.spec import Scene
 
-    def __getitem__(self, link: str) -> PathSet:
-        return self.paths[link]
-
-    def __iter__(self):
-        return iter(self.paths)
-
-    def __len__(self) -> int:
-        return len(self.paths)
+        try:
+            return Scene.for_motion(motion, scene, chair)
+        except ValueError as e:
+            raise InputError(f"chair {chair}: {e}; use chair none (--chair none)") from None
+    return scene  # an RTScene or a path: as given
 
 
 def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
-          accuracy=None, calibration=None, **backend_options) -> PathSets:
+          chair: str = DEFAULT_CHAIR, accuracy=None, calibration=None, **backend_options) -> PathSets:
     """The channel of `motion` seen by every link of `radar`: the backend's path sets, nothing synthesised.
 
     Args:
@@ -247,27 +183,29 @@ def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "poin
         radar: antennas and links (`rtchannel.Radar`); default the seed's 2x2 system.
         backend: "points", "facets" or "sionna" (`rtchannel.BACKENDS`).
         scene: mesh backends only: a `rtchannel.Scene`, "room" (default), "free_space" or a Mitsuba XML path.
+            The points backend has no scene (a warning is issued if one other than free space is given).
+        chair: mesh backends: "auto" puts a chair under a sit/stand motion's seated pelvis
+            (`Scene.for_motion`), "none" (the default, `rtchannel.scene.chair_fit.DEFAULT_CHAIR`, as the
+            CLI's ``--chair``) adds none.
         accuracy: mesh backends: "fast", "balanced", "exact" or an EMD budget [m/s]; the cheapest calibrated
             settings within it are used (`rtchannel.accuracy`) and recorded in ``config["accuracy"]``.
         calibration: the calibration table for `accuracy` (path or `CalibrationTable`; default: the shipped
             table of the radar's carrier and range bin).
-        **backend_options: the backend's options, checked by name and type (e.g. ``lod="5k"``); with
-            `accuracy`, they override the chosen settings.
+        **backend_options: the backend's options (e.g. ``lod="5k"``), checked against its typed model
+            (`rtchannel.backends.options`: names, types, ranges; docs/backend_options.md); with `accuracy`,
+            they override the chosen settings.
 
     Returns:
         `PathSets` (one `PathSet` per link name).
     """
     radar = RadarConfig() if radar is None else radar
-    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
+    backend_options = validate_options(backend, backend_options)  # the backend's options model
     backend_options, record, stats = _budgeted(motion, radar, backend, backend_options, accuracy, calibration)
     if record is not None:  # the table's options are checked like the user's
-        validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
+        backend_options = validate_options(backend, backend_options)
+    scene = _scene_for(motion, backend, scene, chair)
     if scene is not None:
-        if backend in MESH_BACKENDS:
-            backend_options["scene"] = scene
-        elif str(scene) != "free_space":
-            warnings.warn(f"the {backend} backend is a free-space model: scene '{scene}' is not used",
-                          stacklevel=2)
+        backend_options["scene"] = scene
     t0 = time.perf_counter()
     paths = backend_paths(motion, radar, backend, **backend_options, **({} if stats is None else {"stats": stats}))
     timing = {"backend": time.perf_counter() - t0}
@@ -275,24 +213,36 @@ def trace(motion: Motion, radar: RadarConfig | None = None, backend: str = "poin
                     timing=timing)
 
 
-def synthesise(channel: PathSets, radar: RadarConfig | None = None, *, keep_iq: bool = False, progress=None,
-               synthesis: str = "auto", iq_transform=None, noise_seed: int | None = None) -> SimulationResult:
+def _with_dsp(radar: RadarConfig, dsp) -> RadarConfig:
+    """`radar` with the DSP settings `dsp` (a `DSPConfig` or a dict of its fields; None: the radar's own)."""
+    if dsp is None:
+        return radar
+    return radar.model_copy(update={"dsp": dsp if isinstance(dsp, DSPConfig) else DSPConfig.model_validate(dsp)})
+
+
+def synthesise(channel: PathSets, radar: RadarConfig | None = None, *, dsp: DSPConfig | dict | None = None,
+               keep_iq: bool = False, progress=None, synthesis: str = "auto", iq_transform=None,
+               noise_seed: int | None = None) -> SimulationResult:
     """Raw IQ (optional) and signatures of a traced channel: the shared FMCW synthesiser, receiver noise and
     DSP per link.
 
     Args:
-        channel: `trace`'s result.
+        channel: `trace`'s result (or `PathSets.load`'s).
         radar: the radar to synthesise for (default the traced one). It may change the waveform's chirp
             timing, the DSP and the receiver, but not the antennas: its links must be the traced ones.
-        keep_iq, progress, synthesis, iq_transform: as `simulate`.
+        dsp: the DSP settings (`rtchannel.DSPConfig` or a dict of its fields); default the radar's
+            (``radar.dsp``). The result's ``config["radar"]["dsp"]`` records the settings used.
+        keep_iq: keep the raw IQ [chirps, samples] complex64 of every link (memory: 8 bytes per sample), so
+            that `process` can reprocess it.
+        progress: optional callable receiving the number of chirps done after each chunk.
+        synthesis: "auto", "exact" or "grid" (see `processing.synthesis.exact.iter_synthesis`).
+        iq_transform: optional `f(link name, iq) -> iq` applied before the DSP (e.g. signal augmentation).
         noise_seed: seed of the receiver noise (default: the motion's seed, else 0).
 
     Returns:
-        `SimulationResult`; its ``timing`` includes the channel's backend time.
+        `SimulationResult`; its ``timing`` includes the channel's backend time [s].
     """
-    from processing.errors import InputError
-
-    radar = channel.radar if radar is None else radar
+    radar = _with_dsp(channel.radar if radar is None else radar, dsp)
     traced = {lk.name: (tuple(lk.tx_pos), tuple(lk.rx_pos)) for lk in channel.radar.links}
     wanted = {lk.name: (tuple(lk.tx_pos), tuple(lk.rx_pos)) for lk in radar.links}
     if wanted != traced or radar.waveform.carrier_hz != channel.radar.waveform.carrier_hz:
@@ -307,8 +257,9 @@ def synthesise(channel: PathSets, radar: RadarConfig | None = None, *, keep_iq: 
 
 
 def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "points", *, scene=None,
-             keep_iq: bool = False, progress=None, synthesis: str = "auto", iq_transform=None,
-             noise_seed: int | None = None, accuracy=None, calibration=None, **backend_options) -> SimulationResult:
+             chair: str = DEFAULT_CHAIR, dsp: DSPConfig | dict | None = None, keep_iq: bool = False, progress=None,
+             synthesis: str = "auto", iq_transform=None, noise_seed: int | None = None, accuracy=None,
+             calibration=None, **backend_options) -> SimulationResult:
     """Run `motion` through a scattering backend and the shared synthesiser/DSP for every link of `radar`:
     `synthesise(trace(...))`.
 
@@ -319,23 +270,53 @@ def simulate(motion: Motion, radar: RadarConfig | None = None, backend: str = "p
             mesh, ray-traced visibility, wall multipath) or "sionna" (Sionna RT, the reference).
         scene: mesh backends only: a `rtchannel.Scene`, "room" (default), "free_space" or a Mitsuba XML
             path. The points backend has no scene (a warning is issued if one other than free space is given).
-        keep_iq: keep the raw IQ [chirps, samples] of every link (memory: 8 bytes per sample).
+        chair: mesh backends: "auto" (a chair under sit/stand) or "none" (default; see `trace`).
+        dsp: DSP settings (default the radar's; see `synthesise`).
+        keep_iq: keep the raw IQ [chirps, samples] complex64 of every link (memory: 8 bytes per sample).
         progress: optional callable receiving the number of chirps done after each chunk.
         synthesis: "auto", "exact" or "grid" (see `processing.synthesis.exact.iter_synthesis`).
         iq_transform: optional `f(link name, iq) -> iq` applied before the DSP (e.g. signal augmentation).
         noise_seed: seed of the receiver noise (default: the motion's seed, else 0).
-        accuracy, calibration: an accuracy budget and its calibration table (see `trace`).
+        accuracy: an accuracy budget ("fast", "balanced", "exact" or an EMD [m/s]; see `trace`).
+        calibration: the calibration table for `accuracy` (see `trace`).
         **backend_options: the backend's options (e.g. `lod="5k"`, `walls=False` for facets).
 
     Returns:
-        `SimulationResult` with `.signatures`, `.iq`, `.timing`, `.config`, `.save(path)`, `.plot(dir)`.
+        `SimulationResult` with `.signatures`, `.iq`, `.timing`, `.config`, `.save(path)`, `.plot(ax=...)`.
     """
-    radar = RadarConfig() if radar is None else radar
+    radar = _with_dsp(RadarConfig() if radar is None else radar, dsp)
     check_recording(motion.duration, radar.waveform, radar.dsp, len(radar.links), keep_iq)
-    channel = trace(motion, radar, backend, scene=scene, accuracy=accuracy, calibration=calibration,
+    channel = trace(motion, radar, backend, scene=scene, chair=chair, accuracy=accuracy, calibration=calibration,
                     **backend_options)
     return synthesise(channel, keep_iq=keep_iq, progress=progress, synthesis=synthesis,
                       iq_transform=iq_transform, noise_seed=noise_seed)
+
+
+def process(iq, radar: RadarConfig | None = None, dsp: DSPConfig | dict | None = None, *, t0: float = 0.0):
+    """Signatures of raw IQ: the DSP alone, e.g. to reprocess stored IQ with other settings.
+
+    With the radar and DSP settings a result was synthesised with, ``process(result.iq, radar)`` gives its
+    signatures bit for bit (the receiver's noise level sets the `valid` windows, as in `synthesise`).
+
+    Args:
+        iq: raw IQ [n_chirps, n_samples] complex of one link, or {link name: IQ} (e.g. `SimulationResult.iq`
+            of a result made with ``keep_iq=True``, or `SimulationResult.load(path).iq`).
+        radar: the radar that recorded it (waveform, receiver); default the seed's.
+        dsp: the DSP settings (`rtchannel.DSPConfig` or a dict of its fields); default the radar's.
+        t0: start time [s] of the first chirp (the time axis of the signatures starts there).
+
+    Returns:
+        A `Signature` for one IQ array, or {link name: Signature} for a dict.
+    """
+    from processing.radar.receiver import noise_power_per_sample
+
+    radar = _with_dsp(RadarConfig() if radar is None else radar, dsp)
+    noise = None if radar.receiver is None else noise_power_per_sample(radar.receiver, radar.waveform.fs)
+
+    def one(x) -> Signature:
+        return signatures(np.asarray(x), radar.waveform, radar.dsp, t0=float(t0), noise_power=noise)
+
+    return {name: one(x) for name, x in iq.items()} if isinstance(iq, dict) else one(iq)
 
 
 def union_radar(radars) -> RadarConfig:
@@ -354,29 +335,32 @@ def union_radar(radars) -> RadarConfig:
     return first.model_copy(update={"links": links})
 
 
-def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=None, keep_iq: bool = False,
-                    synthesis: str = "auto", iq_transforms=None, noise_seeds=None, accuracy=None, calibration=None,
-                    **backend_options) -> list[SimulationResult]:
+def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=None, chair: str = DEFAULT_CHAIR,
+                    keep_iq: bool = False, progress=None, synthesis: str = "auto", iq_transforms=None,
+                    noise_seeds=None, accuracy=None, calibration=None, **backend_options) -> list[SimulationResult]:
     """`simulate` for several radars (e.g. one motion seen from the seed's 18 directions) with the backend
-    run once: the body is skinned (and, for the mesh backends, its BVH built) once per frame and every
-    antenna of every radar is traced against it; walls stay fixed, the radars move. Synthesis, receiver
-    noise and DSP then run per radar exactly as `simulate` does, so each result equals
-    `simulate(motion, radars[i], ..., noise_seed=noise_seeds[i], iq_transform=iq_transforms[i])`.
+    run once: `trace` of all their links together (the body is skinned and, for the mesh backends, its BVH
+    built once per frame; walls stay fixed, the radars move), then `synthesise` per radar, so each result
+    equals `simulate(motion, radars[i], ..., noise_seed=noise_seeds[i], iq_transform=iq_transforms[i])`.
 
     Args:
         motion: the pose sequence.
         radars: RadarConfigs sharing one waveform (their DSP, receivers and antennas may differ).
         backend: "points", "facets" or "sionna".
         scene: mesh backends only: as `simulate`.
+        chair: mesh backends: as `simulate`.
         keep_iq: keep every link's raw IQ [chirps, samples].
+        progress: optional callable receiving the number of chirps done after each chunk (all radars).
         synthesis: "auto", "exact" or "grid".
-        iq_transforms, noise_seeds: one per radar (default None / the motion's seed).
-        accuracy, calibration: an accuracy budget and its calibration table (see `trace`); chosen for the
-            first radar's carrier and range bin (the radars share one waveform).
+        iq_transforms: one `f(link name, iq) -> iq` (or None) per radar.
+        noise_seeds: one receiver-noise seed (or None: the motion's) per radar.
+        accuracy: an accuracy budget (see `trace`); chosen for the first radar's carrier and range bin (the
+            radars share one waveform).
+        calibration: its calibration table (see `trace`).
         **backend_options: the backend's options, as `simulate`.
 
     Returns:
-        One `SimulationResult` per radar; the shared backend time is split evenly over their ``timing``.
+        One `SimulationResult` per radar; the shared backend time [s] is split evenly over their ``timing``.
     """
     radars = list(radars)
     if not radars:
@@ -388,24 +372,19 @@ def simulate_radars(motion: Motion, radars, backend: str = "points", *, scene=No
         raise InputError("iq_transforms and noise_seeds need one entry per radar")
     for r in radars:
         check_recording(motion.duration, r.waveform, r.dsp, len(r.links), keep_iq)
-    validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
-    union = union_radar(radars)
-    backend_options, record, stats = _budgeted(motion, union, backend, backend_options, accuracy, calibration)
-    if record is not None:  # the table's options are checked like the user's
-        validate_options(backend, backend_options, reserved=RESERVED_OPTIONS + ("scene",))
-    if scene is not None and backend in MESH_BACKENDS:
-        backend_options["scene"] = scene
-    t0 = time.perf_counter()
-    paths = backend_paths(motion, union, backend, **backend_options, **({} if stats is None else {"stats": stats}))
-    shared = (time.perf_counter() - t0) / n
-    traced = _traced(motion, backend, backend_options, record, stats)
+    channel = trace(motion, union_radar(radars), backend, scene=scene, chair=chair, accuracy=accuracy,
+                    calibration=calibration, **backend_options)
+    shared = {"backend": channel.timing["backend"] / n}
     results = []
     for i, r in enumerate(radars):
-        mine = {lk.name: replace(paths[f"r{i}__{lk.name}"], link=lk.name) for lk in r.links}
-        seed = _motion_seed(motion.params) if noise_seeds[i] is None else noise_seeds[i]
-        timing = {"backend": shared}
-        links = process_paths(mine, r, keep_iq=keep_iq, timing=timing, synthesis=synthesis,
-                              iq_transform=iq_transforms[i], noise_seed=seed)
-        config = {**_config(traced, r, synthesis, seed), "traced_with_radars": n}
-        results.append(SimulationResult(links=links, timing=timing, config=config))
+        mine = {lk.name: replace(channel.paths[f"r{i}__{lk.name}"], link=lk.name) for lk in r.links}
+        res = synthesise(PathSets(paths=mine, radar=r, config=channel.config, timing=shared), keep_iq=keep_iq,
+                         progress=progress, synthesis=synthesis, iq_transform=iq_transforms[i],
+                         noise_seed=noise_seeds[i])
+        res.config["traced_with_radars"] = n
+        results.append(res)
     return results
+
+
+__all__ = ["LinkResult", "PathSets", "SimulationResult", "backend_paths", "process", "process_paths", "simulate",
+           "simulate_radars", "synthesise", "trace", "union_radar"]

@@ -110,6 +110,20 @@ class RadarConfig(BaseModel):
     orientation_deg: float = Field(0.0, allow_inf_nan=False, ge=-1e6, le=1e6, description="rotation [deg] about z applied to "
                                    "the links as given (the seed's direction angle); kept for provenance")
 
+    def __repr__(self) -> str:
+        def where(lk):
+            rx = "" if lk.rx is None else f" -> {tuple(round(x, 2) for x in lk.rx)}"
+            return f"{lk.name} {tuple(round(x, 2) for x in lk.tx)}{rx}"
+
+        shown = "; ".join(where(lk) for lk in self.links[:3]) + (f"; ... {len(self.links) - 3} more" if len(self.links) > 3 else "")
+        rx = "noiseless" if self.receiver is None else (f"receiver {self.receiver.transmit_power_dbm:g} dBm, NF "
+                                                        f"{self.receiver.noise_figure_db:g} dB")
+        n = len(self.links)
+        text = (f"<Radar: {n} link{'s' if n != 1 else ''} (m: {shown}), turned {self.orientation_deg:g} deg; {self.waveform!r}; "
+                f"DSP window {self.dsp.window_chirps} hop {self.dsp.hop_chirps} chirps, {self.dsp.range_sum} range sum, "
+                f"{self.dsp.static_removal} MTI; {self.antenna.kind} antennas; {rx}>")
+        return text if len(text) <= 600 else text[:595] + "...>"
+
     @model_validator(mode="after")
     def _unique_names(self) -> "RadarConfig":
         names = [link.name for link in self.links]
@@ -119,8 +133,13 @@ class RadarConfig(BaseModel):
 
     @classmethod
     def seed(cls, direction: int = 1, **overrides) -> "RadarConfig":
-        """The seed's 2x2 distributed MIMO radar (two monostatic Ancortek radars, 24.125 GHz) rotated for
-        the seed's direction 1..18; `overrides` replace fields (e.g. ``waveform=Waveform(...)``)."""
+        """The seed's 2x2 distributed MIMO radar (two monostatic Ancortek radars, 24.125 GHz) turned for one of
+        the seed's directions.
+
+        Args:
+            direction: the seed's direction 1..18 (Radar 1 at 20 (k - 1) degrees).
+            **overrides: RadarConfig fields to replace (e.g. ``waveform=Waveform(...)``, ``receiver=None``).
+        """
         return cls(**overrides).for_direction(direction)
 
     @classmethod
@@ -172,16 +191,24 @@ class RadarConfig(BaseModel):
 
     @classmethod
     def from_file(cls, path: str | Path) -> "RadarConfig":
-        """Load from the YAML or JSON file `path`; raises pydantic's ValidationError naming a bad field, or
+        """Load a radar from a file; raises pydantic's ValidationError naming a bad field, or
         `rtchannel.errors.ConfigError` (one line naming the file and line) for syntax errors, alias bombs and
-        non-mappings (`rtchannel.safe_yaml`)."""
+        non-mappings (`rtchannel.safe_yaml`).
+
+        Args:
+            path: a YAML or JSON file of RadarConfig fields (waveform, dsp, links, antenna, receiver).
+        """
         from rtchannel.safe_yaml import read_yaml_mapping
 
         data = read_yaml_mapping(Path(path), "radar config", max_bytes=1_000_000)  # a radar is a few hundred bytes
         return cls.model_validate(data or {})
 
     def rotated(self, angle_deg: float) -> "RadarConfig":
-        """All antennas rotated by `angle_deg` (counter-clockwise seen from above) about the vertical z axis."""
+        """All antennas (positions and patterns) rotated about the vertical z axis.
+
+        Args:
+            angle_deg: rotation [deg], counter-clockwise seen from above.
+        """
         a = np.deg2rad(angle_deg)
         rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
 
@@ -197,12 +224,21 @@ class RadarConfig(BaseModel):
                                        "orientation_deg": wrap_deg(self.orientation_deg + angle_deg)})
 
     def antennas(self, link: Link) -> tuple:
-        """(transmit, receive) antenna patterns of `link` (its own, else the radar's)."""
+        """(transmit, receive) antenna patterns of a link (its own, else the radar's).
+
+        Args:
+            link: one of this radar's `Link`s.
+        """
         return (link.tx_antenna or self.antenna, link.rx_antenna or self.antenna)
 
     def link_gain(self, link: Link, tx_targets: np.ndarray, rx_targets: np.ndarray | None = None) -> np.ndarray:
-        """Antenna amplitude factor sqrt(G_tx G_rx) [...] of paths of `link` leaving the transmitter towards
-        `tx_targets` [..., 3] (m) and reaching the receiver from `rx_targets` (default the same points)."""
+        """Antenna amplitude factor sqrt(G_tx G_rx) [...] float64 of paths of a link.
+
+        Args:
+            link: one of this radar's `Link`s.
+            tx_targets: points [..., 3] float (m) the paths leave the transmitter towards.
+            rx_targets: points [..., 3] float (m) the paths reach the receiver from (default `tx_targets`).
+        """
         from processing.radar.antenna import link_gain
 
         tx_ant, rx_ant = self.antennas(link)
@@ -211,7 +247,11 @@ class RadarConfig(BaseModel):
         return link_gain(tx_ant, link.tx_pos, rx_ant, link.rx_pos, tx_targets, rx_targets)
 
     def for_direction(self, direction: int) -> "RadarConfig":
-        """The radar set rotated for the seed's direction 1..18 (Radar 1 at 20 (k - 1) degrees)."""
+        """The radar set rotated for one of the seed's directions.
+
+        Args:
+            direction: 1..18 (Radar 1 at 20 (k - 1) degrees).
+        """
         return self.rotated(direction_angles(direction)[0])
 
 

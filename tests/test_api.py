@@ -49,6 +49,23 @@ def test_walkthrough_runs(capsys, shared_data):
         exec(compile(code, f"walkthrough block {k + 1}", "exec"), namespace)  # noqa: S102 - our own docs
     out = capsys.readouterr().out
     assert "hips from" in out and "facets:" in out
+    text = (REPO / "docs" / "walkthrough.md").read_text()
+    # the tour follows the top-level API: trace -> synthesise -> process, nothing imported from deep paths
+    assert all(f"{step}(" in text for step in ("trace", "synthesise", "process"))
+    assert not re.findall(r"^\s*(?:from|import) (?:processing|rtchannel\.)", "\n".join(blocks), flags=re.M)
+
+
+def test_examples_never_write_into_the_checkout(tmp_path, monkeypatch):
+    """Run with no arguments, the example writes into a new temporary folder; no example names an output path
+    inside the repository."""
+    import tempfile
+
+    for f in (REPO / "examples").glob("*.py"):
+        text = f.read_text()
+        assert "docs/img" not in text and '"out/' not in text and "__file__" not in text, f.name
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where mkdtemp makes the default folder
+    written = _load_example("simulate_walk").main()
+    assert written.is_relative_to(tmp_path) and written.is_file()
 
 
 def test_lazy_exports_and_radar_presets():

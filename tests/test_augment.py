@@ -1,4 +1,6 @@
 """Motion-layer augmentation: height, time warp, mirror, heading, start, trim, seeds."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -11,9 +13,7 @@ from test_skinning import smooth_motion
 
 @pytest.fixture(scope="module")
 def walk():
-    m = smooth_motion(np.arange(240) / 120.0, 1.7)
-    m.activity = "walk"
-    return m
+    return replace(smooth_motion(np.arange(240) / 120.0, 1.7), activity="walk")
 
 
 def hips_xy(m):

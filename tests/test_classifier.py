@@ -11,54 +11,10 @@ from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, Tr
                                    classification_report, confusion_matrix, load_checkpoint, preprocess,
                                    save_checkpoint, split_indices, train)
 from processing.classifier.metrics import plot_confusion, write_confusion_csv
-from processing.classifier.training import dataset_arrays
 from processing.io.dataset_store import ACTIVITIES
-from processing.io.dataset_reader import DatasetReader
 from rtchannel.cli import main
 
-PLAN = """
-name: tiny
-seed: 11
-backend: points
-motion:
-  fps: 30
-  sources:
-    - {procedural: fall, variants: 2, params: {duration: [1.0, 1.4], pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: walk, variants: 2, params: {speed: [1.1, 1.4], distance: 2.0, pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: stand, variants: 2, params: {duration: [1.4, 1.8], pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: sit, variants: 2, params: {duration: [1.6, 2.0], pad_before: 0.2, pad_after: 0.2}}
-    - {procedural: pick, variants: 2, params: {duration: [2.0, 2.4], pad_before: 0.2, pad_after: 0.2}}
-  heights: [1.6, 1.8]
-physical:
-  directions: [1, 4, 7, 10, 13, 16]
-signal:
-  gain_sets: [{name: seed}]
-storage:
-  items_per_shard: 12
-"""
 SMALL = ["--size", "32", "32", "--padding", "same", "--quiet"]
-
-
-@pytest.fixture(scope="session")
-def tiny_dataset(tmp_path_factory):
-    """5 classes x 2 motions x 2 heights x 6 directions = 120 items (points backend, ~20 s)."""
-    root = tmp_path_factory.mktemp("clf")
-    plan = root / "plan.yaml"
-    plan.write_text(PLAN)
-    assert main(["dataset", "--config", str(plan), "--out", str(root / "ds"), "--workers", "1", "--quiet"]) == 0
-    return root / "ds"
-
-
-@pytest.fixture(scope="session")
-def trained(tiny_dataset):
-    reader = DatasetReader(tiny_dataset)
-    pre = PreprocessConfig(n_velocity=32, n_time=32)
-    x, y, groups = dataset_arrays(reader, range(len(reader)), ["radar1", "radar2"], pre)
-    mcfg = ModelConfig(input_size=(32, 32), padding="same")
-    # batch 8 and no early stop: on 96 items BatchNorm's running statistics lag the weights for ~8 epochs
-    cfg = TrainConfig(epochs=15, patience=15, batch_size=8, group_split=False, seed=3, threads=1)
-    res = train(x, y, mcfg, cfg, progress=False, log=None)
-    return reader, pre, x, y, res
 
 
 def test_preprocess_fixed_size_and_scaling():
@@ -404,3 +360,45 @@ def test_window_weighs_motion_by_column_power_when_noise_passes_the_valid_mask()
     assert x.shape == (1, 64, 64) and np.isfinite(x).all()
     with pytest.raises(ValueError, match="power has 3 time bins"):
         preprocess_links({"r": {**sample["r"], "power": np.ones(3)}}, ["r"], cfg)
+
+
+def test_library_training_is_the_clis_and_can_start_from_a_checkpoint(tiny_dataset, tmp_path):
+    """`train_classifier` is what `rtchannel train` runs (same weights for the same settings and seed), takes
+    several datasets, starts from a checkpoint's weights (`init=`) and is called in a loop from Python."""
+    from processing.classifier import load_checkpoint
+    from processing.errors import InputError
+    from rtchannel import evaluate_classifier, train_classifier
+
+    pre = PreprocessConfig(n_velocity=32, n_time=32)
+    mcfg = ModelConfig(input_size=(32, 32), padding="same")
+    cfg = TrainConfig(epochs=1, group_split=False, threads=1, seed=2)
+    lib = train_classifier(str(tiny_dataset), preprocess=pre, model=mcfg, train_config=cfg)
+    assert main(["train", "--data", str(tiny_dataset), "--out", str(tmp_path / "cli.pt"), "--epochs", "1",
+                 "--no-group-split", "--threads", "1", "--seed", "2", *SMALL]) == 0
+    cli = load_checkpoint(tmp_path / "cli.pt")
+    for (k, a), b in zip(lib.classifier.model.state_dict().items(), cli.model.state_dict().values()):
+        assert torch.equal(a, b), k
+    assert lib.meta["n_train"] + lib.meta["n_val"] == 120 and "validation accuracy" in repr(lib)
+    # several datasets are one training set
+    halves = [f"{tiny_dataset}:direction=1|4|7", f"{tiny_dataset}:direction=10|13|16"]
+    both = train_classifier(halves, preprocess=pre, model=mcfg, train_config=cfg)
+    assert both.meta["n_train"] + both.meta["n_val"] == 120 and " + " in both.meta["train_spec"]
+    # init: training starts from the given weights (a learning rate of 1e-12 leaves them where they were)
+    lib.save(tmp_path / "lib.pt")
+    still = TrainConfig(epochs=1, group_split=False, threads=1, seed=5, lr=1e-12)
+    from processing.classifier.experiment import load_dataset
+
+    half = load_dataset(halves[0], preprocess=pre)  # loaded once, trained on in a loop
+    for init in (lib.classifier, tmp_path / "lib.pt"):
+        tuned = train_classifier(half, preprocess=pre, model=mcfg, train_config=still, init=init)
+        w0, w1 = (c.model.mlp[0].weight for c in (lib.classifier, tuned.classifier))
+        np.testing.assert_allclose(w1.detach().numpy(), w0.detach().numpy(), rtol=0, atol=1e-9)
+    scratch = train_classifier(half, preprocess=pre, model=mcfg, train_config=still)
+    assert not torch.allclose(scratch.classifier.model.mlp[0].weight, lib.classifier.model.mlp[0].weight)
+    with pytest.raises(InputError, match="init: the checkpoint's network"):
+        train_classifier(half, links=["radar1"], preprocess=pre, train_config=still, init=lib.classifier,
+                         model=mcfg.model_copy(update={"n_branches": 1}))
+    ev = evaluate_classifier(tmp_path / "lib.pt", f"{tiny_dataset}:activity=walk|fall")
+    assert ev.report.n == 48 and ev.title.startswith("lib.pt on ")
+    assert sorted(p.name for p in ev.save(tmp_path / "ev")) == ["confusion.csv", "confusion.png", "metrics.json",
+                                                                 "predictions.csv"]

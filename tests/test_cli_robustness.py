@@ -1,10 +1,10 @@
 """`rtchannel robustness` on Glasgow-layout images the test writes and the tiny single-radar model of
-tests/test_real_eval.py (approaching line = walk, receding = fall)."""
+tests/conftest.py (approaching line = walk, receding = fall)."""
 import csv
 
 import numpy as np
 import pytest
-from test_real_eval import _glasgow_like, model_path  # noqa: F401 - the module-scoped model fixture
+from test_real_eval import _glasgow_like  # the model is conftest's session fixture `model_path`
 
 from processing.classifier import load_checkpoint
 from processing.classifier.perturb import QUICK_GRID, Perturbation, robustness_grid
@@ -26,7 +26,7 @@ def _rows(path):
         return list(csv.DictReader(f))
 
 
-def test_robustness_cli_writes_table_csv_and_heat_map(model_path, images, tmp_path, capsys):  # noqa: F811
+def test_robustness_cli_writes_table_csv_and_heat_map(model_path, images, tmp_path, capsys):
     out = tmp_path / "rob"
     assert main(["robustness", "--model", str(model_path), "--images", str(images), "--out", str(out),
                  "--quick", "--quiet"]) == 0
@@ -51,7 +51,7 @@ def test_robustness_cli_writes_table_csv_and_heat_map(model_path, images, tmp_pa
     assert not list(out.glob("*.tmp"))  # atomic writes leave no temporary files
 
 
-def test_library_grid_matches_direct_evaluation(model_path, images):  # noqa: F811
+def test_library_grid_matches_direct_evaluation(model_path, images):
     clf = load_checkpoint(model_path)
     ims, bad = load_real_images(images)
     assert not bad and len(ims) == 3
@@ -59,7 +59,7 @@ def test_library_grid_matches_direct_evaluation(model_path, images):  # noqa: F8
     assert rows[0]["delta_accuracy"] == 0.0 and all(np.isfinite(r["accuracy"]) for r in rows)
 
 
-def test_user_errors_are_one_line_exit_2(model_path, tmp_path, capsys):  # noqa: F811
+def test_user_errors_are_one_line_exit_2(model_path, tmp_path, capsys):
     assert main(["robustness", "--model", str(tmp_path / "nope.pt"), "--images", str(tmp_path), "--quick"]) == 2
     assert main(["robustness", "--model", str(model_path), "--images", str(tmp_path / "none"), "--quick"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -67,7 +67,7 @@ def test_user_errors_are_one_line_exit_2(model_path, tmp_path, capsys):  # noqa:
     assert main(["robustness", "--help"]) == 0
 
 
-def test_images_whose_motion_a_shift_removes_count_as_truncated(model_path, tmp_path):  # noqa: F811
+def test_images_whose_motion_a_shift_removes_count_as_truncated(model_path, tmp_path):
     """A fall (receding line) only in the clip's first second, over a noise floor, leaves the clip under a
     -1.5 s shift: truncated, and the accuracy on intact images is the whole-clip walk's alone."""
     from processing.realdata.spectrogram_image import glasgow_layout

@@ -7,7 +7,7 @@ import pytest
 from pydantic import ValidationError
 
 from processing.dsp.signatures import DSPConfig, GLASGOW_DSP, project, signatures, signatures_from_projection
-from processing.dsp.fast_time import Projection, coherent_weights, path_response, range_weights
+from processing.fast_time import Projection, coherent_weights, path_response, range_weights
 from processing.pathset import PathSet
 from processing.synthesis.exact import NyquistWarning, synthesise
 from processing.radar.waveform import C0, Waveform

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import sparse
 
-from processing.dsp.fast_time import max_range
+from processing.fast_time import max_range
 from processing.radar.propagation import bistatic_delay
 from processing.radar.waveform import C0
 from rtchannel import Motion

@@ -220,8 +220,15 @@ def test_cli_chair_option(sit):
     from rtchannel.cli.simulate import scene_with_chair
     from rtchannel.scene.render import _static_geometry
 
+    import inspect
+
+    from rtchannel import simulate, simulate_radars, trace
+    from rtchannel.scene.chair_fit import DEFAULT_CHAIR
+
     p = build_parser()
-    assert p.parse_args(["simulate", "--out", "x"]).chair == "auto"
+    # one chair default: the CLI's is the API's
+    assert p.parse_args(["simulate", "--out", "x"]).chair == p.parse_args(["render", "--out", "x"]).chair == DEFAULT_CHAIR
+    assert {inspect.signature(f).parameters["chair"].default for f in (simulate, simulate_radars, trace)} == {DEFAULT_CHAIR}
     assert p.parse_args(["render", "--out", "x", "--chair", "none"]).chair == "none"
     with pytest.raises(SystemExit):
         p.parse_args(["simulate", "--out", "x", "--chair", "sofa"])

@@ -10,8 +10,8 @@ import pytest
 import sklearn.metrics as skm
 import torch
 
-from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, TrainConfig, build_model,
-                                   load_checkpoint, preprocess, save_checkpoint, train)
+from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, build_model, load_checkpoint,
+                                   preprocess, save_checkpoint)
 from processing.classifier.images import evaluate_images, image_inputs
 from processing.io.dataset_store import ACTIVITIES
 from processing.dsp.signatures import Signature
@@ -30,29 +30,11 @@ V = np.linspace(-6.2, 6.2, 64, endpoint=False)
 
 
 def _line(v0: float, t: int, rng) -> np.ndarray:
-    """Column-normalised p(v,t) [64, t]: a Gaussian line (0.3 m/s wide) at v0 plus a little noise."""
-    p = np.exp(-0.5 * ((V[:, None] - v0) / 0.3) ** 2) + 1e-3 * rng.random((64, t))
-    return p / p.sum(axis=0)
+    """Column-normalised p(v,t) [64, t] on V: a Gaussian line at v0 (conftest's `velocity_line`; the session
+    fixture `model_path` was trained on such lines)."""
+    from conftest import velocity_line
 
-
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory):
-    """A 5-class, single-radar model trained on two synthetic classes: approaching (+0.5..3 m/s) = walk,
-    receding (-3..-0.5 m/s) = fall. The other three classes never occur in training."""
-    rng = np.random.default_rng(0)
-    x, y = [], []
-    for k in range(40):
-        sign = 1 if k % 2 == 0 else -1
-        t = int(rng.integers(80, 200))
-        x.append(preprocess(_line(sign * rng.uniform(0.5, 3.0), t, rng), V, np.arange(t) * 0.016, PRE)[None])
-        y.append(ACTIVITIES.index("walk" if sign > 0 else "fall"))
-    mcfg = ModelConfig(n_classes=len(ACTIVITIES), n_branches=1, input_size=(32, 32), padding="same")
-    res = train(np.stack(x), np.array(y), mcfg, TrainConfig(epochs=6, patience=6, batch_size=8, group_split=False,
-                                                            seed=1, threads=1), progress=False, log=None)
-    clf = Classifier(model=res.model, preprocess=PRE, classes=list(ACTIVITIES), links=["radar1"])
-    acc = (clf.predict(np.stack(x)) == np.array(y)).mean()
-    assert acc >= 0.9, acc  # sign of a line is trivially separable; a broken training falls to ~0.5
-    return save_checkpoint(tmp_path_factory.mktemp("model") / "m.pt", clf)
+    return velocity_line(v0, t, rng)
 
 
 def _rows(path):

@@ -7,7 +7,7 @@ from pydantic import ValidationError
 
 from processing.radar.antenna import directivity_dbi
 from processing.dsp.signatures import DSPConfig, signatures
-from processing.dsp.fast_time import project
+from processing.fast_time import project
 
 
 def range_profiles(iq, wf, cfg=DSPConfig()):

@@ -62,6 +62,44 @@ def test_bistatic_point_velocity_and_range(v):
     _check(_run(paths), v, lambda t: 5.0 - v * t)
 
 
+def test_bistatic_asymmetric_geometry_uses_half_the_total_path():
+    """A bistatic link whose target is much nearer the transmitter than the receiver: the radar sees the
+    range (r_tx + r_rx) / 2 and the radial velocity -d/dt of it. The geometry is chosen so that a wrong
+    bistatic delay cannot pass: using either leg alone (2 r_tx / c or 2 r_rx / c) puts the range >= 1.5
+    range bins and the velocity >= 2 velocity bins away from the expected ones (asserted below). The whole
+    chain runs: the points backend's paths for a bistatic `Link`, the synthesiser and the DSP."""
+    from dataclasses import replace
+
+    from rtchannel.backends.points import point_paths
+    from rtchannel.motion.procedural import generate
+    from rtchannel.radar import Link, RadarConfig
+
+    tx, rx = np.array([1.0, 0.0, 1.0]), np.array([-5.0, 6.0, 1.0])
+    motion = generate("fall", fps=60.0, seed=0)
+    motion = replace(motion, positions=motion.positions[:37], rotations=motion.rotations[:37])  # 0.6 s
+    times = motion.times
+    start, velocity = np.array([2.0, 1.5, 1.0]), np.array([1.2, -0.9, 0.0])  # 1.5 m/s, away from tx
+    pts = start + times[:, None] * velocity  # [F, 3]
+    r_tx, r_rx = np.linalg.norm(pts - tx, axis=1), np.linalg.norm(pts - rx, axis=1)
+    r_bi = (r_tx + r_rx) / 2
+    v_bi, v_tx = -np.gradient(r_bi, times), -np.gradient(r_tx, times)
+    # the geometry tells a right bistatic delay from a wrong one
+    assert np.all(np.abs(r_tx - r_bi) > 1.5 * WF.range_resolution) and np.all(np.abs(r_rx - r_bi) > 1.5 * WF.range_resolution)
+    assert np.all(np.abs(v_tx - v_bi) > 2 * DV)
+    radar = RadarConfig(links=[Link(name="bi", tx=tuple(tx), rx=tuple(rx))], receiver=None)
+    paths = point_paths(motion, radar, gains=np.ones(1), trajectories=pts[:, None, :], scale="seed")["bi"]
+    np.testing.assert_allclose(paths.delays[:, 0], (r_tx + r_rx) / C0, rtol=1e-12)
+    sig = _run(paths)
+    # nearly constant velocity (the bistatic angle turns slowly over 0.6 s): the velocity expected in a window is
+    # that at its centre; tolerances as `_check` (half a velocity bin, half a range bin around the coupling shift)
+    v_mid = np.interp(sig.time, times, v_bi)
+    peak_v = sig.velocity[sig.p_vt.argmax(axis=0)]
+    assert np.all(np.abs(peak_v - v_mid) <= DV / 2 + 1e-9), (peak_v, v_mid)
+    peak_r = sig.range[sig.range_distribution.argmax(axis=0)]
+    apparent = np.interp(sig.time, times, r_bi) - coupling_s(WF) * v_mid
+    assert np.all(np.abs(peak_r - apparent) <= WF.range_resolution / 2 + 1e-9), (peak_r, apparent)
+
+
 def test_trajectory_at_30fps_still_shows_5_m_per_s():
     # At 30 fps the frame-rate Nyquist velocity lambda/(4 T_f) is only 0.09 m/s: delays must be
     # interpolated to every chirp for 5 m/s to appear.

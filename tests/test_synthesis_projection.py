@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from processing.dsp.signatures import DSPConfig
-from processing.dsp.fast_time import project, range_weights
+from processing.fast_time import project, range_weights
 from processing.metrics.distances import pvt_tv_distance
 from processing.pathset import PathSet
 from processing.radar.receiver import ANCORTEK_2400T2R4, LeakageConfig, receive

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from processing.dsp.fast_time import project, projector, range_weights
+from processing.fast_time import project, projector, range_weights
 from processing.dsp.mti import _subtract_moving_average
 from processing.dsp.signatures import DSPConfig
 from processing.pathset import PathSet

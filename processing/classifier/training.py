@@ -137,7 +137,8 @@ def _evaluate(model, x, y, batch_size, loss_fn):
 
 def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig = TrainConfig(), groups=None,
           split: tuple[np.ndarray, np.ndarray] | None = None, progress: bool = True, log=print,
-          preprocess: PreprocessConfig | None = None, deployments: dict | None = None) -> TrainResult:
+          preprocess: PreprocessConfig | None = None, deployments: dict | None = None,
+          init_state: dict | None = None) -> TrainResult:
     """Train on X [N, n_branches, V, T] / labels y [N] with an 80:20 stratified (grouped) split.
 
     `split` overrides the split with explicit (train, validation) indices. With ``cfg.val_split ==
@@ -145,7 +146,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     `deployments` must give the factors [N] per name (`splits.deployment_factors`); the description of what
     was held out is returned in ``TrainResult.extra["holdout"]``. `preprocess` is the configuration
     that made X; augmentation (`cfg.augment`) needs it to convert its time shift to columns and for the dB
-    floor (None: the default `PreprocessConfig` at X's size). The returned model carries
+    floor (None: the default `PreprocessConfig` at X's size). `init_state`: a state dict of the same network to
+    start from instead of the seeded random initialisation (fine-tuning). The returned model carries
     the weights of the epoch with the lowest validation loss (early stopping after `patience` epochs
     without improvement). History: per-epoch train/val loss and accuracy, and seconds per epoch.
     """
@@ -186,6 +188,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     xt, yt = torch.from_numpy(np.ascontiguousarray(x[tr])), torch.from_numpy(np.asarray(y)[tr])
     xv, yv = torch.from_numpy(np.ascontiguousarray(x[va])), torch.from_numpy(np.asarray(y)[va])
     model = build_model(model_cfg)
+    if init_state is not None:
+        model.load_state_dict(init_state)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     loss_fn = nn.CrossEntropyLoss()
     gen = torch.Generator().manual_seed(cfg.seed)

@@ -10,6 +10,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from processing.summary import settings_repr
 from processing.windows import is_window_name
 from processing.errors import InputError
 
@@ -130,13 +131,20 @@ class DSPConfig(BaseModel):
             raise InputError(f"max_range_m ({self.max_range_m}) is below min_range_m ({self.min_range_m})")
         return self
 
+    def __repr__(self) -> str:
+        return settings_repr(self)  # the fields set away from their defaults
+
     @property
     def nfft(self) -> int:
         """Slow-time FFT length (window plus zero padding)."""
         return self.window_chirps if self.fft_points is None else self.fft_points
 
     def rd_stride(self, pri_s: float) -> int:
-        """Windows between stored range-Doppler maps at chirp interval `pri_s` [s] (see `range_doppler_stride`)."""
+        """Windows between stored range-Doppler maps (see `range_doppler_stride`).
+
+        Args:
+            pri_s: the chirp interval [s].
+        """
         if self.range_doppler_stride is not None:
             return self.range_doppler_stride
         no_overlap = -(-self.window_chirps // self.hop_chirps)

@@ -1,7 +1,7 @@
 """Radar DSP: range profiles, slow-time clutter removal, micro-Doppler p(v,t), mean velocity, range
 distribution and range-Doppler map (seed eqs. 5-10).
 
-Two stages. The fast-time stage (`processing.dsp.fast_time.project`) turns raw IQ [C, N] into range profiles
+Two stages. The fast-time stage (`processing.fast_time.project`) turns raw IQ [C, N] into range profiles
 of the used bins and the coherent range-sum slow-time signal; the slow-time stage
 (`signatures_from_projection`) does everything else: MTI clutter filter (`processing.dsp.mti`), STFT over
 `window_chirps` chirps every `hop_chirps`, p(v,t), eq.-8 mean velocity, range distribution, range-Doppler
@@ -20,7 +20,7 @@ odd FFT length there is no Nyquist bin and the axis is symmetric.) f_ref, the ca
 to, is stored as `Signature.carrier_hz`, and `Signature.v_max` is v_max above. For per-range-bin
 processing (range_sum "incoherent"/"magnitude", and always for the range-Doppler map) a range bin's phase
 refers to mid-chirp, so f_ref = `Waveform.carrier_hz` and v_max = `Waveform.v_max` exactly. The coherent
-range sum's phase refers to where its fast-time weights sit (`processing.dsp.fast_time.coherent_weights`),
+range sum's phase refers to where its fast-time weights sit (`processing.fast_time.coherent_weights`),
 so its f_ref is that instantaneous frequency, 0.4-0.5 % below the centre at the seed's radar: labelling it
 with the centre frequency would scale every velocity by that much. With a velocity crop the axes keep
 only |v| <= `velocity_crop_mps`.
@@ -32,13 +32,13 @@ removed static scene) gets p(v,t) = 0 for every v and mean velocity 0; its range
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from processing.dsp.config import DEFAULT_MTI_CUTOFF_MPS, GLASGOW_DSP, DSPConfig
-from processing.dsp.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
+from processing.fast_time import Projection, coherent_weights, doppler_band, project, range_weights
 from processing.dsp.mti import mti_filter
 from processing.radar.waveform import C0, Waveform
 from processing.windows import get_window
@@ -88,6 +88,58 @@ class Signature:
     range_doppler: np.ndarray | None = None
     range_doppler_time: np.ndarray | None = None
     range_doppler_velocity: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        v, t, r = np.asarray(self.velocity), np.asarray(self.time), np.asarray(self.range)
+
+        def span(x, unit, fmt=".3g"):
+            return f"{x[0]:{fmt}}..{x[-1]:{fmt}} {unit}" if x.size else "empty"
+
+        rd = "" if self.range_doppler is None else f"; range-Doppler {'x'.join(map(str, np.shape(self.range_doppler)))}"
+        valid = int(np.count_nonzero(self.valid))
+        return (f"<Signature: p(v,t) [{v.size} velocity x {t.size} time] over {span(v, 'm/s')}, {span(t, 's')}; "
+                f"range distribution [{r.size} range x {t.size} time] over {span(r, 'm')}; {valid}/{t.size} windows "
+                f"with signal; carrier {self.carrier_hz / 1e9:.4g} GHz, v_max {self.v_max:.3g} m/s{rd}>")
+
+    def __eq__(self, other) -> bool:
+        """Equal when every field is: arrays of one dtype and shape with the same values (NaN never occurs)."""
+        if not isinstance(other, Signature):
+            return NotImplemented
+        for f in fields(self):
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if (a is None) != (b is None):
+                return False
+            if a is not None and not (np.shape(a) == np.shape(b) and np.asarray(a).dtype == np.asarray(b).dtype
+                                      and np.array_equal(a, b)):
+                return False
+        return True
+
+    __hash__ = None  # mutable arrays: not hashable
+
+    def to_xarray(self):
+        """The signatures as an `xarray.Dataset` with coordinates ``velocity`` [m/s], ``time`` [s], ``range``
+        [m] (and ``rd_velocity`` [m/s], ``rd_time`` [s] of the range-Doppler map when present): ``p_vt``
+        (velocity, time), ``mean_velocity``, ``valid``, ``power`` (time), ``range_distribution`` (range, time),
+        ``range_doppler`` (range, rd_velocity, rd_time); ``carrier_hz`` and ``v_max`` as attributes."""
+        import xarray as xr
+
+        data = {"p_vt": (("velocity", "time"), self.p_vt, {"long_name": "p(v,t), seed eq. 7", "units": "1"}),
+                "mean_velocity": ("time", self.mean_velocity, {"long_name": "mean radial velocity, eq. 8",
+                                                               "units": "m/s"}),
+                "range_distribution": (("range", "time"), self.range_distribution, {"long_name": "p'(r,t), eq. 10",
+                                                                                    "units": "1"}),
+                "valid": ("time", np.asarray(self.valid, bool), {"long_name": "window carries signal"})}
+        coords = {"velocity": ("velocity", self.velocity, {"units": "m/s", "long_name": "radial velocity, "
+                                                                                         "+ = approaching"}),
+                  "time": ("time", self.time, {"units": "s", "long_name": "window centre"}),
+                  "range": ("range", self.range, {"units": "m"})}
+        if np.shape(self.power) == np.shape(self.time):
+            data["power"] = ("time", self.power, {"long_name": "column power before normalisation", "units": "a.u."})
+        if self.range_doppler is not None:
+            data["range_doppler"] = (("range", "rd_velocity", "rd_time"), self.range_doppler, {"units": "a.u."})
+            coords["rd_velocity"] = ("rd_velocity", self.range_doppler_velocity, {"units": "m/s"})
+            coords["rd_time"] = ("rd_time", self.range_doppler_time, {"units": "s"})
+        return xr.Dataset(data, coords=coords, attrs={"carrier_hz": float(self.carrier_hz), "v_max": float(self.v_max)})
 
 
 def column_sums(weights: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -6,7 +6,8 @@ Layout (DESIGN.md): root attributes `activity`, `backend`, `seed`, `direction_de
 [n_time], the scalars `carrier_hz` (the carrier `velocity` refers to) and `v_max` [m/s], optionally the
 range-Doppler map `range_doppler` [n_range, n_rd_velocity, n_rd_time] (float32) with its axes
 `range_doppler_velocity` [m/s] and `range_doppler_time` [s] (the range axis is `range`), and optionally
-`iq` [n_chirps, n_samples]; group attributes `tx`, `rx` (m).
+`iq` [n_chirps, n_samples] and `chirp_times` [n_chirps] (s, start of each chirp); group attributes `tx`, `rx`
+(m). The root attribute `timing` (JSON, seconds per stage) is optional too.
 
 Size. The range-Doppler map is the largest array: one map per `DSPConfig.rd_stride(PRI)`-th window
 (default: about 10 maps per second and never overlapping, `processing.dsp.config.RD_MIN_INTERVAL_S`),
@@ -35,8 +36,18 @@ _SCALARS = ("carrier_hz", "v_max")
 
 def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, activity: str, backend: str,
                          seed: int, direction_deg: float, config: dict, iq: dict[str, np.ndarray] | None = None,
-                         link_attrs: dict[str, dict] | None = None) -> Path:
+                         link_attrs: dict[str, dict] | None = None, chirp_times: dict[str, np.ndarray] | None = None,
+                         timing: dict[str, float] | None = None) -> Path:
     """Write `signatures` ({link: Signature}) to `path` atomically (temporary file, fsync, rename).
+
+    Args:
+        path: the file to write.
+        signatures: {link name: Signature}.
+        activity, backend, seed, direction_deg, config: the root attributes (config as JSON).
+        iq: {link name: raw IQ [n_chirps, n_samples] complex} of the links whose IQ is kept.
+        link_attrs: {link name: {attribute: value}} (e.g. tx, rx positions [3] in m).
+        chirp_times: {link name: chirp start times [n_chirps] float64 in s}.
+        timing: seconds per stage (root attribute `timing`, JSON).
 
     Raises `InputError` for a signature without time bins and ValueError for non-finite arrays (a bug)."""
     path = Path(path)
@@ -53,6 +64,8 @@ def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, 
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs.update(activity=activity, backend=backend, seed=int(seed), direction_deg=float(direction_deg),
                        version=FORMAT_VERSION, config=json.dumps(config, sort_keys=True, default=str))
+        if timing is not None:
+            f.attrs["timing"] = json.dumps(timing, sort_keys=True)
         for name, sig in signatures.items():
             g = f.create_group(name)
             for key in _ARRAYS:
@@ -65,6 +78,9 @@ def write_signature_file(path: str | Path, signatures: dict[str, Signature], *, 
                                  compression="gzip", compression_opts=4, shuffle=True)
             if iq is not None and name in iq:
                 g.create_dataset("iq", data=iq[name], compression="gzip", compression_opts=1)
+            if chirp_times is not None and name in chirp_times:
+                g.create_dataset("chirp_times", data=np.asarray(chirp_times[name], np.float64), compression="gzip",
+                                 compression_opts=4, shuffle=True)
             for key, value in (link_attrs or {}).get(name, {}).items():
                 g.attrs[key] = value
     return path
@@ -79,12 +95,35 @@ def read_signature_file(path: str | Path) -> tuple[dict, dict[str, Signature]]:
     Returns:
         (root attributes with `config` parsed from JSON, {link name: Signature}).
     """
+    parts = read_signature_parts(path)
+    return parts["attrs"], parts["signatures"]
+
+
+def read_signature_parts(path: str | Path) -> dict:
+    """Everything a `signature.h5` holds (what `SimulationResult.load` rebuilds a result from).
+
+    Args:
+        path: the file.
+
+    Returns:
+        {"attrs": root attributes with `config` (and `timing`, if stored) parsed from JSON, "signatures":
+        {link: Signature}, "iq": {link: IQ [n_chirps, n_samples]} of the links that stored it, "chirp_times":
+        {link: chirp start times [n_chirps] s} of the links that stored them, "link_attrs": {link: {name:
+        value}}}.
+    """
+    out = {"signatures": {}, "iq": {}, "chirp_times": {}, "link_attrs": {}}
     with h5py.File(path, "r") as f:
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
         attrs["config"] = json.loads(attrs.get("config", "{}"))
-        sigs = {}
+        if "timing" in attrs:
+            attrs["timing"] = json.loads(attrs["timing"])
         for name, g in f.items():
             kw = {fl.name: g[fl.name][()] for fl in fields(Signature) if fl.name in g}
             kw.update({k: float(kw[k]) for k in _SCALARS if k in kw})
-            sigs[name] = Signature(**kw)
-    return attrs, sigs
+            out["signatures"][name] = Signature(**kw)
+            for key in ("iq", "chirp_times"):
+                if key in g:
+                    out[key][name] = g[key][()]
+            out["link_attrs"][name] = dict(g.attrs)
+    out["attrs"] = attrs
+    return out

@@ -52,6 +52,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
 
 from processing.errors import InputError
+from processing.summary import settings_repr
 
 Vec3 = tuple[float, float, float]
 _TINY = 1e-30  # below this squared sine a direction counts as on the boresight axis (float32-safe)
@@ -72,6 +73,8 @@ def _rot_z(angle_deg: float) -> np.ndarray:
 
 class _Antenna(BaseModel):
     """Orientation shared by all patterns. Positions and directions in the project frame (z up, m)."""
+
+    __repr__ = settings_repr  # the fields set away from their defaults
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 

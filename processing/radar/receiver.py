@@ -52,16 +52,18 @@ from pydantic import BaseModel, ConfigDict, Field
 from processing.radar.propagation import received_power_ratio
 from processing.radar.antenna import AntennaPattern, GaussianBeam, YagiBeam
 from processing.radar.waveform import C0, Waveform
+from processing.summary import settings_repr
 from processing.windows import get_window
 from processing.errors import InputError
+from processing.constants import K_BOLTZMANN_J_K as K_BOLTZMANN, T0_K  # J/K, K (re-exported names)
 
-K_BOLTZMANN = 1.380649e-23  # J/K (exact, SI 2019)
-T0_K = 290.0  # reference temperature of the noise figure (IEEE)
 NOISE_BLOCK_CHIRPS = 256  # part of the reproducibility contract: changing it changes every noise realisation
 
 
 class LeakageConfig(BaseModel):
     """Transmitter-to-receiver leakage with residual phase noise (see the module docstring)."""
+
+    __repr__ = settings_repr  # the fields set away from their defaults
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
@@ -75,6 +77,8 @@ class LeakageConfig(BaseModel):
 
 class ReceiverConfig(BaseModel):
     """Transmit power and receiver noise of one radar. Values SI except the logarithmic ones."""
+
+    __repr__ = settings_repr  # the fields set away from their defaults
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
@@ -91,6 +95,8 @@ class ReceiverConfig(BaseModel):
 
 class RadarHardware(BaseModel):
     """A radar kit: its receiver and the pattern shared by its transmit and receive antennas."""
+
+    __repr__ = settings_repr  # the fields set away from their defaults
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
@@ -267,7 +273,7 @@ def _taper(name: str, n: int) -> np.ndarray:
 
 def range_bin_noise(p_sample: float, n_samples: int, range_window: str = "boxcar") -> float:
     """Noise power [W] per range bin, P_n sum(w^2) / sum(w)^2, for white noise of `p_sample` per complex
-    sample under the DSP's range-FFT normalisation (`processing.dsp.fast_time.project`) (divide by sum(w)). A range-Doppler bin
+    sample under the DSP's range-FFT normalisation (`processing.fast_time.project`) (divide by sum(w)). A range-Doppler bin
     holds the same level: the DSP's Doppler taper has unit energy, which leaves white noise unchanged."""
     w = _taper(range_window, n_samples)
     return p_sample * float((w ** 2).sum() / w.sum() ** 2)

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from processing.constants import C0, DEFAULT_CARRIER_HZ
 from processing.errors import InputError
 
-C0 = 299_792_458.0  # speed of light [m/s]
+__all__ = ["C0", "Waveform"]  # C0 [m/s]: the one home is processing.constants
 
 
 class Waveform(BaseModel):
@@ -28,7 +29,7 @@ class Waveform(BaseModel):
     # count, i.e. the memory, of a simulation); 1 mm - 10 km of range covers rooms to outdoor sites.
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    carrier_hz: float = Field(24.125e9, ge=1e6, le=1e12, description="carrier (centre) frequency f0 [Hz]")
+    carrier_hz: float = Field(DEFAULT_CARRIER_HZ, ge=1e6, le=1e12, description="carrier (centre) frequency f0 [Hz]")
     bandwidth_hz: float = Field(250e6, gt=0, le=100e9, description="swept bandwidth B [Hz]")
     pri_s: float = Field(0.5e-3, ge=1e-6, le=1.0, description="pulse (chirp) repetition interval [s]")
     chirp_duration_s: float | None = Field(None, ge=1e-7, le=1.0, description="chirp duration [s]; default = PRI")
@@ -53,6 +54,11 @@ class Waveform(BaseModel):
                 f"adc_rate_hz ({self.fs:g} Hz) is below the {needed:g} Hz beat frequency of "
                 f"max_range_m = {self.max_range_m:g} m")
         return self
+
+    def __repr__(self) -> str:
+        return (f"Waveform({self.carrier_hz / 1e9:.6g} GHz carrier, {self.bandwidth_hz / 1e6:.6g} MHz sweep, PRI "
+                f"{self.pri_s * 1e3:.6g} ms, {self.samples_per_chirp} samples at {self.fs / 1e6:.6g} MHz; range bin "
+                f"{self.range_resolution:.3g} m up to {self.max_range_m:g} m, v_max {self.v_max:.3g} m/s)")
 
     @property
     def chirp_s(self) -> float:
@@ -100,5 +106,9 @@ class Waveform(BaseModel):
         return self.fs / self.slope
 
     def velocity_resolution(self, window_chirps: int) -> float:
-        """Velocity-bin spacing lambda / (2 W PRI) [m/s] of a slow-time FFT over `window_chirps` (W) chirps."""
+        """Velocity-bin spacing lambda / (2 W PRI) [m/s] of a slow-time FFT.
+
+        Args:
+            window_chirps: the FFT's window W [chirps].
+        """
         return self.wavelength / (2 * window_chirps * self.pri_s)

@@ -1,6 +1,6 @@
 """Consumed-only synthesis: the DSP's fast-time projection of one link straight from its paths, no raw IQ.
 
-The DSP reads a chirp only through linear maps of its N samples (`processing.dsp.fast_time`): the range profile of
+The DSP reads a chirp only through linear maps of its N samples (`processing.fast_time`): the range profile of
 the used bins, iq @ W [N, R], and for the coherent range sum (seed eq. 6) one slow-time value, iq @ h [N]. The
 gridded synthesiser (`processing.synthesis.grid`) makes a chirp's IQ as a fixed linear map of its spread grid
 b [M + w + 1] (fold, M-point inverse FFT, division by the kernel's transform), so
@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from processing.dsp.fast_time import Projection, coherent_weights, doppler_band, project, projector, range_weights
+from processing.fast_time import Projection, coherent_weights, doppler_band, project, projector, range_weights
 from processing.pathset import PathSet
 from processing.synthesis.exact import chirp_times, iter_received, iter_weighted, uses_grid
 from processing.radar.waveform import Waveform

@@ -1,19 +1,16 @@
 """Scattering backends: each turns a pose sequence into a PathSet per radar link.
 
 The registry below imports a backend only when it is asked for: the mesh backends load Mitsuba, numba
-kernels and the avatar, which a points-only run never needs.
+kernels and the avatar, which a points-only run never needs. Their options are typed models
+(`rtchannel.backends.options`); the checks below are that module's, under the names callers already use.
 """
 from __future__ import annotations
 
-import inspect
-import math
-
 from processing.errors import InputError
+from rtchannel.backends.options import RESERVED_OPTIONS, option_names, options_model, validate_options
 
 BACKENDS = ("points", "facets", "sionna")
 MESH_BACKENDS = ("facets", "sionna")
-# keywords the pipeline or the dataset runner sets itself; users never pass them as options
-RESERVED_OPTIONS = ("motion", "radar", "progress", "timing", "stats")
 
 
 def backend_function(backend: str):
@@ -35,14 +32,8 @@ def backend_function(backend: str):
 
 def unknown_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> list[str]:
     """The option names the backend does not accept (or that are reserved), in the order given."""
-    accepted = inspect.signature(backend_function(backend)).parameters
-    return [name for name in options if name not in accepted or name in reserved]
-
-
-def option_names(backend: str, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> list[str]:
-    """The options a user may set for `backend` (its keyword arguments less motion, radar and `reserved`)."""
-    accepted = inspect.signature(backend_function(backend)).parameters
-    return [n for n in accepted if n not in ("motion", "radar") and n not in reserved]
+    names = option_names(backend, reserved)
+    return [name for name in options if name not in names]
 
 
 def check_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> None:
@@ -54,35 +45,10 @@ def check_options(backend: str, options: dict, reserved: tuple[str, ...] = RESER
                          f"{', '.join(option_names(backend, reserved))})")
 
 
-def validate_options(backend: str, options: dict, reserved: tuple[str, ...] = RESERVED_OPTIONS) -> None:
-    """The one check of backend options, shared by every command, dataset plans and the API: the backend
-    exists, every name is one of its options and every value fits the option's type (InputError, one line
-    naming the option and the valid names or the expected type)."""
-    check_options(backend, options, reserved)
-    check_option_values(backend, options)
-
-
 def check_option_values(backend: str, options: dict) -> None:
-    """Raise InputError naming the first option whose value does not fit the backend's type annotation
-    (e.g. ``body_rcs_m2=abc``) or is not a scalar (options come from command lines and YAML plans)."""
-    import typing
+    """Raise InputError naming the first option whose value does not fit its type or range."""
+    validate_options(backend, options, reserved=())
 
-    from pydantic import TypeAdapter, ValidationError
 
-    hints = typing.get_type_hints(backend_function(backend))
-    for name, value in options.items():
-        if isinstance(value, (dict, list, tuple, set)):
-            raise InputError(f"backend option '{name}': expected a single value, got a {type(value).__name__}")
-        hint = hints.get(name)
-        if hint is None or name == "scene":
-            continue
-        if "ndarray" in str(hint) and not hasattr(value, "__array__") and value is not None:
-            raise InputError(f"backend option '{name}' = {value!r}: expects an array (set it from Python)")
-        try:
-            TypeAdapter(hint).validate_python(value, strict=False)
-        except ValidationError as e:
-            raise InputError(f"backend option '{name}' = {value!r}: {e.errors()[0]['msg']}") from None
-        except Exception:  # noqa: BLE001 - an annotation pydantic cannot check (a library object): skip
-            continue
-        if isinstance(value, float) and not math.isfinite(value):
-            raise InputError(f"backend option '{name}' = {value!r}: must be finite")
+__all__ = ["BACKENDS", "MESH_BACKENDS", "RESERVED_OPTIONS", "backend_function", "check_option_values",
+           "check_options", "option_names", "options_model", "unknown_options", "validate_options"]

@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from processing.dsp.fast_time import max_range
+from processing.constants import EPSILON_0_F_M
+from processing.fast_time import max_range
 from processing.pathset import PathSet
 from processing.radar.propagation import bistatic_delay
 from processing.radar.waveform import C0
@@ -91,7 +92,7 @@ def _patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
     w = 2 * math.pi * frequency_hz
     for k, (name, v, f, slab) in enumerate(rt_scene._static):  # noqa: SLF001 - the scene's static meshes
         eps, sigma, thickness = (float(x) for x in slab)
-        e = complex(eps, -sigma / (w * 8.8541878128e-12))
+        e = complex(eps, -sigma / (w * EPSILON_0_F_M))
         r = rt_scene.roughness(name) if hasattr(rt_scene, "roughness") else WALL_ROUGHNESS_M
         for tri in v[f]:
             edge = max(np.linalg.norm(tri[1] - tri[0]), np.linalg.norm(tri[2] - tri[1]), np.linalg.norm(tri[0] - tri[2]))

@@ -344,7 +344,7 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
         radar: `rtchannel.radar.RadarConfig` (links and carrier).
         scene: "room", "free_space", a Mitsuba XML path, or an `RTScene` whose body is this LOD.
         lod: avatar level of detail ("full", "10k", "5k", "2k"), or "auto": the coarsest whose facets scatter
-            like the smooth body at the carrier (`scene_model.lod_for_wavelength`).
+            like the smooth body at the carrier (`scene_model.resolve_lod`).
         trace_fps: rate [Hz] of visibility/gain evaluation (None: every motion frame); a speed knob.
             Coarser than the motion only when below its frame rate.
         trace_step_m: instead of `trace_fps`, trace where the body's fastest vertex has moved this far [m]
@@ -385,14 +385,14 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     Raises:
         rtchannel.scene.rt_scene.RadarPlacementError: an antenna closer than 1 cm to the geometry.
     """
+    from rtchannel.backends.scene_model import resolve_lod
     from rtchannel.body.avatar import load_avatar
     from rtchannel.scene.rt_scene import RTScene, get_scene
     from rtchannel.body.skinning import blend_points, matrix_derivatives, rest_for_motion
 
     wf = radar.waveform
     stats = {} if stats is None else stats
-    if lod == "auto":
-        lod = _scene_lod(scene, wf.wavelength)
+    lod = resolve_lod(lod, scene, wf.wavelength)
     rt = scene if isinstance(scene, RTScene) else get_scene(scene, lod, motion.rig.height, wf.carrier_hz, skin,
                                                             sionna=False)
     avatar = load_avatar(lod)
@@ -469,20 +469,6 @@ def _timed_clutter(*args) -> tuple[dict, float]:
     return clutter_paths(*args), time.perf_counter() - t0
 
 
-def _scene_lod(scene, wavelength: float) -> str:
-    """``lod="auto"``: the scene's own body LOD when given an `RTScene`, else `scene_model.lod_for_wavelength`."""
-    from rtchannel.backends.scene_model import lod_for_wavelength
-    from rtchannel.body.avatar import LODS
-    from rtchannel.scene.rt_scene import RTScene
-
-    if isinstance(scene, RTScene):
-        n = len(scene.body_faces)
-        from rtchannel.body.avatar import load_avatar
-
-        return next(lod for lod in LODS if load_avatar(lod).n_faces == n)
-    return lod_for_wavelength(wavelength)
-
-
 def _culled_double(double_bounce, stats: dict):
     """A double bounce named after a wall that ``walls="auto"`` culled is dropped with it."""
     if isinstance(double_bounce, str) and double_bounce in stats.get("culled_walls", {}):
@@ -498,7 +484,7 @@ def _used_walls(walls, choice: bool | str, links, radar, wall_cut_db, stats: dic
     if choice is False or not walls:
         return []
     if choice == "auto":
-        from processing.dsp.fast_time import max_range
+        from processing.fast_time import max_range
         from rtchannel.backends.scene_model import walls_in_view
 
         kept, culled = walls_in_view(walls, links, max_range(radar.waveform, radar.dsp),

@@ -30,6 +30,7 @@ from typing import Callable
 
 import numpy as np
 
+from processing.constants import DEFAULT_CARRIER_HZ
 from processing.radar.antenna import Isotropic
 from processing.pathset import PathSet
 from processing.radar.propagation import FOUR_PI_1_5
@@ -64,7 +65,7 @@ def plate_mesh(width: float, height: float, n: int = 1) -> tuple[np.ndarray, np.
 
 
 def monostatic_rcs(backend: BackendFn, vertices: np.ndarray, faces: np.ndarray, distance: float = 5.0,
-                   centre=(0.0, 0.0, 1.5), azimuth_deg: float = 0.0, frequency_hz: float = 24.125e9) -> dict:
+                   centre=(0.0, 0.0, 1.5), azimuth_deg: float = 0.0, frequency_hz: float = DEFAULT_CARRIER_HZ) -> dict:
     """RCS [m^2] of a mesh (given about the origin, placed at `centre`) seen by a monostatic radar.
 
     The radar sits `distance` m from `centre` in the horizontal direction `azimuth_deg` (0 = +x, so a

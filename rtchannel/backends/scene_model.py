@@ -76,6 +76,27 @@ def lod_for_wavelength(wavelength_m: float, curvature_m: float = LIMB_CURVATURE_
     return by_size[-1]
 
 
+def resolve_lod(lod: str, scene, wavelength_m: float) -> str:
+    """The one resolution of a backend's ``lod`` option (facets and sionna): a level of detail as given, or for
+    "auto" the body LOD of a given `RTScene`, else `lod_for_wavelength` of the carrier.
+
+    Args:
+        lod: "full", "10k", "5k", "2k" or "auto".
+        scene: what the backend traces (an `RTScene` carries its own body; names and paths do not).
+        wavelength_m: the carrier's wavelength [m].
+    """
+    if lod != "auto":
+        return lod
+    from rtchannel.scene.rt_scene import RTScene
+
+    if isinstance(scene, RTScene):
+        from rtchannel.body.avatar import LODS, load_avatar
+
+        n = len(scene.body_faces)
+        return next(name for name in LODS if load_avatar(name).n_faces == n)
+    return lod_for_wavelength(wavelength_m)
+
+
 def _wall_grid(wall, n: int = 24) -> np.ndarray:
     """Points [M, 3] covering the wall polygon: an n x n grid in its plane kept inside, plus its corners."""
     from rtchannel.backends.wall_images import in_convex_polygon

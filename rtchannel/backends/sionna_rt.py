@@ -182,7 +182,7 @@ def sionna_paths(motion: Motion, radar: RadarConfig, scene: str = "room", lod: s
         radar: links; every antenna must be >= 1 cm from all geometry in every frame
             (`rtchannel.scene.rt_scene.RadarPlacementError` otherwise).
         scene: "room", "free_space" or a Mitsuba XML path (see `rtchannel.scene.rt_scene`).
-        lod: avatar level of detail ("full", "10k", "5k", "2k").
+        lod: avatar level of detail ("full", "10k", "5k", "2k"), or "auto" (`scene_model.resolve_lod`).
         trace_fps: trace at this frame rate (motion resampled); default every motion frame.
         samples_per_src: rays shot per transmitter per frame.
         max_depth: maximum number of interactions per path.
@@ -202,11 +202,13 @@ def sionna_paths(motion: Motion, radar: RadarConfig, scene: str = "room", lod: s
         patterns, `RadarConfig.antennas`), and
         delay_rates from per-vertex body velocities. Frames without body paths have gain 0 everywhere.
     """
+    from rtchannel.backends.scene_model import resolve_lod
     from rtchannel.body.avatar import load_avatar
     from rtchannel.body.skinning import skin_vertices, skin_velocities
 
     if trace_fps is not None:
         motion = motion.resampled(trace_fps)
+    lod = resolve_lod(lod, scene, radar.waveform.wavelength)
     rt_scene = get_scene(scene, lod, motion.rig.height, radar.waveform.carrier_hz, skin)
     av = load_avatar(lod, motion.rig.height)
     return trace_frames(rt_scene, radar, motion.times, skin_vertices(av, motion), skin_velocities(av, motion),

@@ -4,7 +4,6 @@ Datasets are named by specs of the query language in `processing.io.dataset_quer
 """
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -159,51 +158,15 @@ def _configs(args):
 
 
 def train_spec(spec: str, args, out: Path, log=print):
-    """Train on a dataset spec; writes the checkpoint, curves and validation confusion next to `out`."""
-    from processing.classifier import Classifier, classification_report, save_checkpoint, train
-    from processing.classifier.metrics import plot_confusion, write_confusion_csv
-    from processing.classifier.training import dataset_arrays
-    from processing.io.dataset_store import ACTIVITIES
-    from processing.plots.classifier import plot_history
+    """Train on a dataset spec (`train_classifier`) and write the checkpoint, curves and validation confusion
+    next to `out` (`Training.save`); returns the `Training`."""
+    from processing.classifier.experiment import train_classifier
 
     links, pre, mcfg, tcfg = _configs(args)
-    reader, idx = open_spec(spec)
-    t0 = time.perf_counter()
-    try:
-        x, y, groups = dataset_arrays(reader, idx, links, pre, progress=not args.quiet)
-    except (KeyError, ValueError) as e:
-        raise _user_error()(str(e).strip("'\"")) from None
-    t_load = time.perf_counter() - t0
-    log(f"{len(idx)} items from {spec} ({', '.join(f'{k}={v}' for k, v in zip(*np.unique([ACTIVITIES[i] for i in y], return_counts=True)))}); "
-        f"loaded in {t_load:.1f} s")
-    deployments = None
-    if tcfg.val_split == "deployment":
-        from processing.classifier.splits import deployment_factors
-
-        deployments = deployment_factors([reader.entries[i] for i in idx])
-    try:
-        res = train(x, y, mcfg, tcfg, groups=groups, progress=not args.quiet, log=log, preprocess=pre,
-                    deployments=deployments)
-    except ValueError as e:
-        raise _user_error()(str(e)) from None
-    clf = Classifier(model=res.model, preprocess=pre, classes=list(ACTIVITIES), links=links)
-    va = res.val_idx
-    rep = classification_report(y[va], clf.predict(x[va]), ACTIVITIES)
-    meta = {"train_spec": spec, "n_train": int(res.train_idx.size), "n_val": int(va.size), "best_epoch": res.best_epoch,
-            "train_seconds": res.seconds, "load_seconds": t_load, "train_config": tcfg.model_dump(mode="json"),
-            "val_items": [reader.entries[idx[i]]["item_id"] for i in va], "val_accuracy": rep.accuracy,
-            "holdout": res.extra.get("holdout"), "averaged": res.extra.get("averaged")}
-    # the DSP settings of the training data, so that `evaluate --recordings` processes real IQ the same way
-    dsps = {json.dumps(reader.entries[i].get("params", {}).get("radar", {}).get("dsp"), sort_keys=True) for i in idx}
-    meta["dsp"] = json.loads(dsps.pop()) if len(dsps) == 1 else None
-    save_checkpoint(out, clf, history=res.history, extra=meta)
-    stem = out.with_suffix("")
-    plot_history(res.history, f"{stem}_curves.png", res.best_epoch, title=f"training history ({spec})")
-    plot_confusion(rep, f"{stem}_val_confusion.png")
-    write_confusion_csv(rep, f"{stem}_val_confusion.csv")
-    log(f"trained in {res.seconds:.1f} s ({len(res.history['train_loss'])} epochs, best {res.best_epoch}); "
-        f"validation ({va.size} items):\n{rep.summary()}")
-    return clf, res, rep, (reader, idx, x, y)
+    training = train_classifier(spec, links=links, preprocess=pre, model=mcfg, train_config=tcfg,
+                                progress=not args.quiet, log=log)
+    training.save(out)
+    return training
 
 
 def cmd_train(args) -> int:
@@ -225,25 +188,15 @@ def _load_model(path: Path):
 
 
 def evaluate_arrays(clf, x, y, out_dir: Path | None, title: str, names=None, log=print):
-    """Predict, report and (if `out_dir`) write confusion PNG/CSV, metrics.json and predictions.csv."""
-    from processing.atomic import write_text_atomic
-    from processing.classifier import classification_report
-    from processing.classifier.metrics import plot_confusion, write_confusion_csv
+    """Predict, report and (if `out_dir`) write confusion PNG/CSV, metrics.json and predictions.csv
+    (`evaluate_classifier`, `Evaluation.save`); returns the `Report`."""
+    from processing.classifier.experiment import evaluate_classifier
 
-    proba = clf.predict_proba(x)
-    pred = proba.argmax(1)
-    rep = classification_report(y, pred, clf.classes)
+    ev = evaluate_classifier(clf, (x, y), names=names, title=title)
     if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        plot_confusion(rep, out_dir / "confusion.png")
-        write_confusion_csv(rep, out_dir / "confusion.csv")
-        write_text_atomic(out_dir / "metrics.json", json.dumps({"title": title, **rep.as_dict()}, indent=1))
-        rows = ["name,true,predicted,confidence"] + [
-            f"{(names[i] if names else i)},{clf.classes[y[i]]},{clf.classes[pred[i]]},{proba[i, pred[i]]:.4f}"
-            for i in range(len(y))]
-        write_text_atomic(out_dir / "predictions.csv", "\n".join(rows) + "\n")
-    log(f"{title}:\n{rep.summary()}")
-    return rep
+        ev.save(out_dir)
+    log(f"{title}:\n{ev.report.summary()}")
+    return ev.report
 
 
 def _recording_inputs(clf, args):
@@ -304,8 +257,6 @@ def _evaluate_images(clf, args, out: Path) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    from processing.classifier.training import dataset_arrays
-
     clf = _load_model(args.model)
     out = args.out or args.model.with_name(args.model.stem + "_eval")
     check_output(out, "dir")
@@ -314,12 +265,10 @@ def cmd_evaluate(args) -> int:
     if args.images is not None:
         return _evaluate_images(clf, args, out)
     if args.data is not None:
-        reader, idx = open_spec(args.data)
-        try:
-            x, y, _ = dataset_arrays(reader, idx, clf.links, clf.preprocess, progress=not args.quiet)
-        except (KeyError, ValueError) as e:
-            raise _user_error()(str(e).strip("'\"")) from None
-        names, title = [reader.entries[i]["item_id"] for i in idx], f"{args.model.name} on {args.data}"
+        from processing.classifier.experiment import load_dataset
+
+        ds = load_dataset(args.data, clf.links, clf.preprocess, progress=not args.quiet)
+        x, y, names, title = ds.x, ds.y, ds.names, f"{args.model.name} on {args.data}"
     else:
         x, y, names = _recording_inputs(clf, args)
         title = f"{args.model.name} on recordings {args.recordings}"
@@ -330,74 +279,28 @@ def cmd_evaluate(args) -> int:
 
 def _crossval_plan(args) -> list[dict]:
     if args.plan is not None:
-        import re
+        from rtchannel.dataset.build import read_crossval_plan
 
-        from rtchannel.safe_yaml import read_yaml_mapping
-
-        if not args.plan.is_file():
-            raise _user_error()(f"crossval plan not found: {args.plan}")
-        doc = read_yaml_mapping(args.plan, "crossval plan")  # bounded; errors name the line, never quote it
-        exps = doc.get("experiments")
-        if not isinstance(exps, list) or not exps:
-            raise _user_error()(f"{args.plan}: needs a list 'experiments' of {{name, train, test}}")
-        plan = []
-        for k, e in enumerate(exps):
-            if not isinstance(e, dict) or "train" not in e or "test" not in e:
-                raise _user_error()(f"{args.plan}: experiment {k + 1} needs 'train' and 'test' specs")
-            tests = e["test"] if isinstance(e["test"], list) else [e["test"]]
-            name = e.get("name", f"exp{k + 1}")
-            # the name becomes part of a model file's name beside --out: no path, no duplicate
-            if not (isinstance(name, (str, int)) and re.fullmatch(r"[A-Za-z0-9_\-]{1,64}", str(name))):
-                raise _user_error()(f"{args.plan}: experiment {k + 1}: name must be 1-64 letters, digits, _ or -")
-            if not all(isinstance(x, str) and x for x in [e["train"], *tests]):
-                raise _user_error()(f"{args.plan}: experiment {k + 1}: train and test are dataset specs (text)")
-            plan.append({"name": str(name), "train": e["train"], "test": list(tests)})
-        names = [p["name"] for p in plan]
-        if len(set(names)) != len(names):
-            raise _user_error()(f"{args.plan}: experiment names must be distinct (each names a model file)")
-        return plan
+        try:
+            return read_crossval_plan(args.plan)
+        except ValueError as e:
+            raise _user_error()(str(e)) from None
     if not args.train or not args.test:
         raise _user_error()("give --plan YAML, or --train SPEC and --test SPEC (repeatable)")
     return [{"name": f"train{k + 1}", "train": t, "test": list(args.test)} for k, t in enumerate(args.train)]
 
 
 def cmd_crossval(args) -> int:
-    from processing.classifier.training import dataset_arrays
+    from processing.classifier.experiment import crossvalidate
 
     plan = _crossval_plan(args)
     out = output_file(args.out, ".csv")
     check_output(out, "file")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for exp in plan:
-        model_path = out.with_name(f"{out.stem}_{exp['name']}.pt")
-        clf, res, val_rep, (reader, idx, _, _) = train_spec(exp["train"], args, model_path)
-        for test in exp["test"]:
-            if test == exp["train"]:
-                rep, n_note = val_rep, "held-out validation split"
-            else:
-                treader, tidx = open_spec(test)
-                x, y, _ = dataset_arrays(treader, tidx, clf.links, clf.preprocess, progress=not args.quiet)
-                rep = evaluate_arrays(clf, x, y, None, f"{exp['name']} -> {test}")
-                n_note = ""
-            rows.append({"experiment": exp["name"], "train": exp["train"], "test": test, "n_train": int(res.train_idx.size),
-                         "n_test": rep.n, "accuracy_pct": round(100 * rep.accuracy, 2),
-                         "macro_f1_pct": round(100 * rep.macro_f1, 2), "train_s": round(res.seconds, 1),
-                         "note": n_note})
-    import csv
-    import io
-
-    from processing.atomic import write_text_atomic
-
-    buf = io.StringIO(newline="")
-    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
-    w.writeheader()
-    w.writerows(rows)
-    write_text_atomic(out, buf.getvalue())
-    md = ["| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
-    md += ["| " + " | ".join(str(v) for v in r.values()) + " |" for r in rows]
-    write_text_atomic(out.with_suffix(".md"), "\n".join(md) + "\n")
-    print("\n".join(md))
+    links, pre, mcfg, tcfg = _configs(args)
+    cv = crossvalidate(plan, links=links, preprocess=pre, model=mcfg, train_config=tcfg, progress=not args.quiet,
+                       log=print)
+    cv.save(out)
+    print(cv.markdown())
     print(f"wrote {out} and {out.with_suffix('.md')}")
     return 0
 

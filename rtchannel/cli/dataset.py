@@ -42,13 +42,11 @@ def cmd_dataset(args) -> int:
         from rtchannel.dataset.runner import check_scheduler_address
 
         check_scheduler_address(args.scheduler)
-    from rtchannel.dataset.plan import expand, load_plan, resolve_config
+    from rtchannel.dataset.build import build_dataset, plan_dataset
     from rtchannel.errors import InputError
 
     try:
-        path = resolve_config(args.config)
-        plan = load_plan(path, backend=args.backend)
-        items = expand(plan, fetch=not args.dry_run)  # counting downloads nothing
+        plan, items = plan_dataset(args.config, backend=args.backend, fetch=not args.dry_run)  # counting downloads nothing
     except ValidationError as e:
         raise UserError(validation_line(e, f"plan {args.config}")) from None
     except InputError as e:
@@ -71,13 +69,13 @@ def cmd_dataset(args) -> int:
                 f"; {checked.not_local} registered files not local, not checked (rtchannel data fetch gets them)"
                 if checked.not_local else ""))
         return 0
-    from rtchannel.dataset.runner import PlanMismatchError, run_plan
+    from rtchannel.dataset.runner import PlanMismatchError
 
     check_output(args.out, "dir")  # after the plan is valid: a bad plan leaves no folder behind
 
     try:
-        s = run_plan(plan, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
-                     progress=not args.quiet)
+        s = build_dataset(plan, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
+                          progress=not args.quiet)
     except (PlanMismatchError, BlockingIOError) as e:
         raise UserError(str(e)) from None
     except (OSError, TimeoutError) as e:

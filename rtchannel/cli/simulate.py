@@ -38,10 +38,13 @@ class StoreGiven(argparse.Action):
 
 
 def add_chair_arg(p) -> None:
-    """--chair auto|none (read by `scene_with_chair`)."""
-    p.add_argument("--chair", choices=("auto", "none"), default="auto", action=StoreGiven,
-                   help="mesh backends and render: auto (default) puts a wooden chair under the person for sit "
-                   "and stand, placed from the motion (seat height, facing, backrest behind); none: no chair")
+    """--chair auto|none, default the API's (`rtchannel.scene.chair_fit.DEFAULT_CHAIR`; read by `scene_with_chair`)."""
+    from rtchannel.scene.chair_fit import CHAIR_MODES, DEFAULT_CHAIR
+
+    p.add_argument("--chair", choices=CHAIR_MODES, default=DEFAULT_CHAIR, action=StoreGiven,
+                   help="mesh backends and render: auto puts a wooden chair under the person for sit and stand, "
+                   "placed from the motion (seat height, facing, backrest behind); none: no chair (default "
+                   f"{DEFAULT_CHAIR}, as the Python API's simulate)")
 
 
 def scene_with_chair(scene, motion, chair: str):
@@ -91,14 +94,13 @@ def cmd_simulate(args) -> int:
     motion = build_motion(args)
     check_recording(motion.duration, radar.waveform, radar.dsp, len(radar.links), args.keep_iq)
     scene = Scene(args.scene) if args.scene is not None else None
-    if args.backend != "points":  # the points backend is free space: no furniture
-        scene = scene_with_chair(scene, motion, args.chair)
-        if scene is not None and scene.furniture:
-            print(f"scene {scene.name}: " + "; ".join(f.note or f.label for f in scene.furniture))
     n_chirps = int(motion.duration / radar.waveform.pri_s + 1) * len(radar.links)
     with tqdm(total=n_chirps, unit="chirp", disable=args.quiet or None, desc=f"{args.activity}") as bar:
-        result = simulate(motion, radar, args.backend, scene=scene, keep_iq=args.keep_iq, progress=bar.update,
-                          **budget, **options)
+        result = simulate(motion, radar, args.backend, scene=scene, chair=args.chair, keep_iq=args.keep_iq,
+                          progress=bar.update, **budget, **options)
+    scene = result.config.get("backend_options", {}).get("scene")
+    if isinstance(scene, dict) and scene.get("furniture"):
+        print(f"scene {scene['source']}: " + "; ".join(f.get("note") or f.get("label", "") for f in scene["furniture"]))
     result.config["direction"] = None if args.angle_deg is not None else args.direction
     out = result.save(args.out / "signature.h5", seed=args.seed)
     if "accuracy" in result.config:
@@ -107,6 +109,6 @@ def cmd_simulate(args) -> int:
               f"{acc['calibrated_s_per_sim_s']:.3g} s per simulated s; {acc['calibration']})")
     print(f"wrote {out}")
     if not args.no_plots:
-        for png in result.plot(args.out, title=f"{args.activity} ({args.backend}, {angle:g} deg)"):
+        for png in result.save_figures(args.out, title=f"{args.activity} ({args.backend}, {angle:g} deg)"):
             print(f"wrote {png}")
     return 0

@@ -139,11 +139,17 @@ def check_placement(start=None, heading_deg: float | None = None, start_name: st
 
 
 def place_take(motion: Motion, start=None, heading_deg: float | None = None, trim=None) -> Motion:
-    """An imported take `motion` placed in the room: `trim` (t0, t1) [s] of it kept first, turned to face `heading_deg`
-    [deg, counter-clockwise from +x] about its first frame's hips, then started at `start` (x, y) [m]; without a
-    start a walk is centred on the origin like a procedural one (`centre_walk`), any other take starts over
-    the origin as imported. InputError (naming --trim, --start or --heading) for a window outside the take or a
-    placement beyond procedural motions' bounds (`check_placement`)."""
+    """An imported take placed in the room: trimmed first, turned about its first frame's hips, then moved to its
+    start; without a start a walk is centred on the origin like a procedural one (`centre_walk`), any other take
+    starts over the origin as imported. InputError (naming --trim, --start or --heading) for a window outside the
+    take or a placement beyond procedural motions' bounds (`check_placement`).
+
+    Args:
+        motion: the imported `Motion`.
+        start: (x, y) [m] of the hips' ground point at the start, or None.
+        heading_deg: direction faced at the start [deg, counter-clockwise from +x], or None (as imported).
+        trim: (t0, t1) [s] of the take to keep, or None (all of it).
+    """
     from rtchannel.motion.augment import augment
 
     check_placement(start, heading_deg)

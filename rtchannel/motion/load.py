@@ -1,6 +1,7 @@
 """One entry point for motion files: `load_motion` dispatches on the extension and retargets."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -117,7 +118,7 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     if fps is not None and fps != motion.fps:
         check_resampled_frames(motion.duration, fps)
         motion = motion.resampled(fps)
-    motion.params = {**motion.params, "file": str(p), "fps": float(motion.fps), "requested_height": height}
+    motion = replace(motion, params={**motion.params, "file": str(p), "fps": float(motion.fps), "requested_height": height})
     return motion
 
 

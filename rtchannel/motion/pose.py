@@ -65,19 +65,34 @@ class Rig:
     def n_joints(self) -> int:
         return len(self.names)
 
+    def __repr__(self) -> str:
+        return f"<Rig: {self.n_joints} joints ({self.names[0]} .. {self.names[-1]}), height {self.height:.3g} m>"
+
     def index(self, name: str) -> int:
-        """Index of the joint called `name` (ValueError if the rig has none)."""
+        """Index of a joint (ValueError if the rig has none).
+
+        Args:
+            name: the joint's name (e.g. "Hips").
+        """
         return self.names.index(name)
 
     def scaled(self, height: float) -> "Rig":
-        """This rig uniformly scaled about the floor point under the origin to `height` metres."""
+        """This rig uniformly scaled about the floor point under the origin.
+
+        Args:
+            height: the new standing height [m], 0.3-3 m.
+        """
         if not np.isfinite(height) or height <= 0.3 or height > 3.0:
             raise InputError(f"height must be a plausible body height in metres (0.3-3 m), got {height}")
         s = height / self.height
         return replace(self, rest=self.rest * s, tails=self.tails * s, height=float(height))
 
     def children(self, j: int) -> list[int]:
-        """Indices of the joints whose parent is joint `j`."""
+        """Indices of the joints whose parent is a joint.
+
+        Args:
+            j: the parent's joint index.
+        """
         return [k for k, p in enumerate(self.parents) if p == j]
 
 
@@ -123,17 +138,21 @@ def check_resampled_frames(duration_s: float, fps: float, what: str = "fps") -> 
     return n
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class Motion:
     """A pose sequence sampled at a constant frame rate.
+
+    Immutable: fields cannot be reassigned and the arrays are read-only views (a shape check at
+    construction cannot be bypassed later); `dataclasses.replace(motion, positions=...)` makes a changed,
+    validated copy. Equality is identity.
 
     Attributes:
         rig: the skeleton (rest pose, hierarchy, height).
         fps: frame rate [Hz].
-        rotations: rest-relative global joint rotations [F, J, 3, 3].
-        positions: global joint positions [F, J, 3] in metres.
+        rotations: rest-relative global joint rotations [F, J, 3, 3] float64 (read-only).
+        positions: global joint positions [F, J, 3] float64 in metres (read-only).
         activity: activity label (``walk``, ``fall``, ``sit``, ``stand``, ``pick``) or "".
-        params: every parameter that produced this motion (JSON-serialisable).
+        params: every parameter that produced this motion (JSON-serialisable; a private copy).
     """
 
     rig: Rig
@@ -147,10 +166,13 @@ class Motion:
     def procedural(cls, activity: str, **params) -> "Motion":
         """A procedural activity ("walk", "fall", "sit", "stand", "pick") on the avatar rig.
 
-        `params` are `rtchannel.motion.procedural.ProceduralParams` fields (height [m], speed [m/s],
-        duration [s], distance [m], heading_deg, start (x, y) [m], seed, fps [Hz], ...). A walk without
-        an explicit `start` is centred on the origin along its heading, so the default 4 m walk toward
-        the seed's Radar 1 (3 m away) stops 1 m short of it; other activities happen over the origin.
+        A walk without an explicit `start` is centred on the origin along its heading, so the default 4 m walk
+        toward the seed's Radar 1 (3 m away) stops 1 m short of it; other activities happen over the origin.
+
+        Args:
+            activity: "walk", "fall", "sit", "stand" or "pick".
+            **params: `rtchannel.motion.procedural.ProceduralParams` fields: height [m], speed [m/s], duration
+                [s], distance [m], heading_deg [deg], start (x, y) [m], seed (int), fps [Hz], ...
         """
         return _factory("procedural")(activity, **params)
 
@@ -177,6 +199,16 @@ class Motion:
             raise InputError("Motion contains NaN or infinite joint data")
         if not self.fps > 0:
             raise InputError(f"fps must be positive, got {self.fps}")
+        for name in ("rotations", "positions"):
+            view = np.asarray(getattr(self, name)).view()  # the caller's array stays writeable
+            view.flags.writeable = False
+            object.__setattr__(self, name, view)
+        object.__setattr__(self, "params", dict(self.params))
+
+    def __repr__(self) -> str:
+        label = self.activity or "motion"
+        return (f"<Motion {label!r}: {self.n_frames} frames at {self.fps:g} Hz ({self.duration:.2f} s), "
+                f"{self.rig.n_joints} joints, height {self.rig.height:.2f} m; positions [frames, joints, 3] m>")
 
     @property
     def n_frames(self) -> int:
@@ -193,8 +225,12 @@ class Motion:
         return (self.n_frames - 1) / self.fps
 
     def attached_points(self, joints: np.ndarray, rest_points: np.ndarray) -> np.ndarray:
-        """Trajectories [F, M, 3] (m) of points rigidly attached to `joints` [M] (joint indices) at
-        `rest_points` [M, 3] (m, rest pose)."""
+        """Trajectories [F, M, 3] float64 (m) of points rigidly attached to joints.
+
+        Args:
+            joints: joint index of each point [M] (int).
+            rest_points: the points in the rest pose [M, 3] float (m).
+        """
         joints = np.asarray(joints)
         local = rest_points - self.rig.rest[joints]
         return self.positions[:, joints] + np.einsum("fmab,mb->fma", self.rotations[:, joints], local)
@@ -205,7 +241,11 @@ class Motion:
         return np.concatenate([self.rotations, t[..., None]], axis=-1)
 
     def resampled(self, fps: float) -> "Motion":
-        """The same motion at another frame rate `fps` [Hz]: slerp for rotations, cubic splines for positions."""
+        """The same motion at another frame rate: slerp for rotations, cubic splines for positions.
+
+        Args:
+            fps: the new frame rate [Hz] (finite, > 0).
+        """
         if fps == self.fps:
             return self
         if not (isinstance(fps, (int, float, np.number)) and 0 < fps < float("inf")):
@@ -224,7 +264,12 @@ class Motion:
                        params={**self.params, "resampled_fps": float(fps)})
 
     def transformed(self, yaw_rad: float = 0.0, offset=(0.0, 0.0, 0.0)) -> "Motion":
-        """The motion rotated by `yaw_rad` about the vertical through the origin, then shifted by `offset` (m)."""
+        """The motion rotated about the vertical through the origin, then shifted.
+
+        Args:
+            yaw_rad: rotation about +z [rad], counter-clockwise seen from above.
+            offset: shift (x, y, z) [m] applied after the rotation.
+        """
         from scipy.spatial.transform import Rotation
 
         rz = Rotation.from_euler("z", yaw_rad).as_matrix()

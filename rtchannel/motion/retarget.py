@@ -16,6 +16,7 @@ found from the planted feet, and a per-frame vertical correction keeps planted f
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -370,10 +371,10 @@ def retarget(src: SourceMotion, *, height: float | None = None, activity: str = 
         motion = motion.transformed(yaw)
         shift = -np.array([*motion.positions[0, 0, :2], 0.0])
         motion = motion.transformed(0.0, shift)
-    motion.params = {**src.info, "source": src.path, "height": float(height), "leg_ratio": float(ratio),
+    motion = replace(motion, params={**src.info, "source": src.path, "height": float(height), "leg_ratio": float(ratio),
                      "source_leg_m": leg_src, **ground_info, "floor": bool(floor),
                      "foot_contact": bool(floor and foot_contact), "align": bool(align),
-                     "align_yaw_rad": float(yaw), "align_shift_m": shift[:2].tolist(), "activity": activity}
+                     "align_yaw_rad": float(yaw), "align_shift_m": shift[:2].tolist(), "activity": activity})
     return motion
 
 

@@ -179,7 +179,10 @@ def wants_chair(motion: Motion) -> bool:
 
 
 CHAIR_MODES = ("auto", "none")
+# The one chair default of the API (`rtchannel.trace`/`simulate`) and the CLI (`--chair`); a dataset plan's `chair`
+# field defaults to the same "none". "auto" puts the chair under sit and stand.
+DEFAULT_CHAIR = "none"
 
 
-__all__ = ["CHAIR_MODES", "SEATED_ACTIVITIES", "chair_for", "chair_penetration", "procedural_seat_height",
+__all__ = ["CHAIR_MODES", "DEFAULT_CHAIR", "SEATED_ACTIVITIES", "chair_for", "chair_penetration", "procedural_seat_height",
            "seated_frames", "wants_chair"]

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.constants import epsilon_0
+from processing.constants import EPSILON_0_F_M as epsilon_0
 
 # rms height of a plastered or concrete wall finish (honest range 0.3-3 mm: float-finished concrete to rough
 # plaster): with the Kirchhoff model it gives walls S = 0.80 at 24 GHz and 0.24 at 5.8 GHz at normal incidence

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from processing.atomic import atomic_path
+from processing.constants import DEFAULT_CARRIER_HZ
 from processing.errors import InputError
 from rtchannel.body.avatar import load_avatar
 from rtchannel.motion.pose import Motion
@@ -134,7 +135,7 @@ def _floor(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def render_scene(motion: Motion, frames, radar_positions, out_png, lod: str = "10k", *,
-                 size=(960, 720), spp: int = 32, camera=None, scene=None, frequency_hz: float = 24.125e9) -> Path:
+                 size=(960, 720), spp: int = 32, camera=None, scene=None, frequency_hz: float = DEFAULT_CARRIER_HZ) -> Path:
     """Render the skinned body at several frames (one colour each) with radars as red spheres on masts.
 
     Args:

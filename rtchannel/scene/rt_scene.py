@@ -25,11 +25,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.constants import epsilon_0
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
+from processing.constants import EPSILON_0_F_M as epsilon_0
 from rtchannel.errors import RadarPlacementError, SceneFileError
 from rtchannel.assets import scenes_dir
 from rtchannel.scene.sandbox import load_error_line, load_scene_string, read_scene_xml

@@ -12,8 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.constants import epsilon_0
-
+from processing.constants import C0, DEFAULT_CARRIER_HZ, EPSILON_0_F_M as epsilon_0
 from processing.errors import InputError
 
 _SKIN_MATERIAL_ID = "rtchannel-skin"
@@ -37,7 +36,7 @@ def gabriel_dry_skin(frequency_hz: float) -> tuple[float, float]:
     return float(eps.real), float(-eps.imag * w * epsilon_0)
 
 
-_SKIN_24G = gabriel_dry_skin(24.125e9)
+_SKIN_24G = gabriel_dry_skin(DEFAULT_CARRIER_HZ)
 
 
 # Skin roughness: the scattering coefficient S depends on the roughness in wavelengths. Kirchhoff's
@@ -47,13 +46,13 @@ _SKIN_24G = gabriel_dry_skin(24.125e9)
 # material: it is taken at normal incidence. The one parameter sigma_h is chosen so that S = 0.5 at
 # 24.125 GHz, the value the project has used at the seed's carrier (0.53 mm: within the 0.1-1 mm range of
 # skin-surface profilometry, wrinkles and clothing folds excluded); it gives S = 0.13 at 5.8 GHz.
-SKIN_REFERENCE_S = (24.125e9, 0.5)
+SKIN_REFERENCE_S = (DEFAULT_CARRIER_HZ, 0.5)
 
 
 def roughness_rms_m() -> float:
     """The rms surface height sigma_h [m] that gives S = 0.5 at 24.125 GHz under the Kirchhoff model."""
     f, s_ref = SKIN_REFERENCE_S
-    return math.sqrt(-math.log(1.0 - s_ref ** 2)) * (299792458.0 / f) / (4 * math.pi)
+    return math.sqrt(-math.log(1.0 - s_ref ** 2)) * (C0 / f) / (4 * math.pi)
 
 
 def scattering_coefficient(frequency_hz: float, rms_height_m: float | None = None) -> float:
@@ -63,7 +62,7 @@ def scattering_coefficient(frequency_hz: float, rms_height_m: float | None = Non
     if rms_height_m is None and frequency_hz == f_ref:
         return s_ref  # the reference point itself, exactly (the round trip through sigma_h is off by 1 ulp)
     sigma_h = roughness_rms_m() if rms_height_m is None else rms_height_m
-    g = (4 * math.pi * sigma_h * frequency_hz / 299792458.0) ** 2
+    g = (4 * math.pi * sigma_h * frequency_hz / C0) ** 2
     return math.sqrt(-math.expm1(-g))
 
 

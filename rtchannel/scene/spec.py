@@ -50,12 +50,20 @@ class Scene:
 
     @classmethod
     def from_xml(cls, path: str | Path) -> "Scene":
-        """A user's Mitsuba 3 scene file at `path` (its shapes need radio materials; the id "body" is reserved;
-        references to other files are sandboxed to its folder)."""
+        """A user's Mitsuba 3 scene file (its shapes need radio materials; the id "body" is reserved;
+        references to other files are sandboxed to its folder).
+
+        Args:
+            path: the XML file.
+        """
         return cls(Path(path))
 
     def with_furniture(self, *items) -> "Scene":
-        """This scene plus `items` (`Furniture`, or dicts of its fields)."""
+        """This scene plus furniture.
+
+        Args:
+            *items: `Furniture` pieces, or dicts of its fields.
+        """
         from rtchannel.scene.furniture import Furniture
 
         new = tuple(f if isinstance(f, Furniture) else Furniture(**f) for f in items)
@@ -63,9 +71,13 @@ class Scene:
 
     @classmethod
     def for_motion(cls, motion, scene=None, chair: str = "auto") -> "Scene | None":
-        """The scene for `motion`: with ``chair="auto"`` and a sit/stand motion, `scene` (a `Scene`, a name or
-        an XML path; None = the room) plus the chair placed by `chair_fit.chair_for`; otherwise `scene`
-        unchanged (None stays None: the backend's default).
+        """The scene for a motion: with ``chair="auto"`` and a sit/stand motion, the scene plus the chair placed
+        by `chair_fit.chair_for`; otherwise the scene unchanged (None stays None: the backend's default).
+
+        Args:
+            motion: the `Motion` (its activity decides; sit and stand sit on the chair).
+            scene: a `Scene`, a name or an XML path; None: the room.
+            chair: "auto" or "none" (`chair_fit.CHAIR_MODES`).
 
         Raises:
             ValueError: unknown `chair` mode, or a sit/stand motion without a seated phase.
@@ -80,8 +92,13 @@ class Scene:
         return base.with_chair_for(motion)
 
     def with_chair_for(self, motion, **options) -> "Scene":
-        """This scene plus the built-in chair placed under the seated person of `motion`
-        (`rtchannel.scene.chair_fit.chair_for`; `options` go to it). Raises ValueError without a seated phase."""
+        """This scene plus the built-in chair placed under the seated person of a motion
+        (`rtchannel.scene.chair_fit.chair_for`). Raises ValueError without a seated phase.
+
+        Args:
+            motion: a `Motion` with a seated phase.
+            **options: `chair_for` options (e.g. the seat height [m]).
+        """
         from rtchannel.scene.chair_fit import chair_for
 
         return self.with_furniture(chair_for(motion, **options))
@@ -125,10 +142,18 @@ class Scene:
 
     @classmethod
     def from_describe(cls, d: dict) -> "Scene":
-        """The scene `describe()` recorded."""
+        """The scene `describe()` recorded.
+
+        Args:
+            d: the dict `describe()` returned (as stored in a result's config).
+        """
         from rtchannel.scene.furniture import Furniture
 
         return cls(d["source"], tuple(Furniture.from_describe(f) for f in d.get("furniture", ())))
+
+    def __repr__(self) -> str:
+        return f"Scene({str(self.source)!r}" + "".join(f" + {f.label} at {tuple(round(x, 2) for x in f.position)} m"
+                                                       for f in self.furniture[:4]) + ")"
 
     def __str__(self) -> str:
         return str(self.source) + "".join(f"+{f.label}" for f in self.furniture)

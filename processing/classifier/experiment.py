@@ -1,0 +1,416 @@
+"""Training, evaluation and cross-validation of the activity classifier on datasets, as library functions.
+
+The commands `rtchannel train`, `evaluate` and `crossval` are argument parsing and printing around these;
+the same runs from Python (exported by `rtchannel`)::
+
+    training = train_classifier("out/seed", links=["radar1", "radar2"])           # or several datasets
+    training.save("out/model.pt")                                                 # checkpoint, curves, confusion
+    tuned = train_classifier(["out/glasgow", "out/extra"], init="out/model.pt")   # start from its weights
+    evaluation = evaluate_classifier(tuned.classifier, "out/other:direction=1")
+    evaluation.save("out/eval")                                                   # confusion, metrics, predictions
+
+Datasets are named by specs of the query language (`processing.io.dataset_query`: ``DIR[:key=v1|v2,...]``);
+several specs are loaded one after another into one training set. Training calls
+`processing.classifier.training.train` (split, early stopping, determinism), so a loop of calls from
+Python gives what the command gives, seed for seed. User errors (a spec selecting nothing, a missing link,
+data that cannot be split, a checkpoint of another architecture) are `InputError`s with one line.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from processing.classifier.metrics import Report, classification_report
+from processing.classifier.model import ModelConfig
+from processing.classifier.predictor import Classifier
+from processing.classifier.preprocess import PreprocessConfig
+from processing.classifier.training import TrainConfig, TrainResult, dataset_arrays, train
+from processing.errors import InputError
+from processing.labels import ACTIVITIES
+
+DEFAULT_LINKS = ("radar1", "radar2")
+
+
+@dataclass
+class Dataset:
+    """Classifier inputs loaded from dataset specs.
+
+    Attributes:
+        x: preprocessed inputs [N, n_links, V, T] float32.
+        y: labels [N] int64 (indices into `processing.labels.ACTIVITIES`).
+        groups: motion-source group of each item [N] (grouped splits keep a group on one side).
+        names: item ids [N].
+        entries: the index entries [N] (every parameter that made each item).
+        spec: the specs, joined by " + ".
+        seconds: loading time [s].
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    groups: list[str]
+    names: list[str]
+    entries: list[dict]
+    spec: str
+    seconds: float = 0.0
+
+    def __repr__(self) -> str:
+        counts = ", ".join(f"{ACTIVITIES[k]}={n}" for k, n in zip(*np.unique(self.y, return_counts=True)))
+        return f"<Dataset {self.spec!r}: {len(self.y)} items ({counts}), inputs [{' x '.join(map(str, self.x.shape))}]>"
+
+
+def _specs(data) -> list[str]:
+    if isinstance(data, (str, Path)):
+        return [str(data)]
+    specs = [str(d) for d in data]
+    if not specs:
+        raise InputError("no dataset given")
+    return specs
+
+
+def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None = None,
+                 progress: bool = False) -> Dataset:
+    """Load and preprocess the items of one or several dataset specs into one `Dataset`.
+
+    Args:
+        data: a spec ``DIR[:FILTER]`` (str or Path) or a sequence of them.
+        links: the radar links to load (one network branch each).
+        preprocess: the preprocessing (default `PreprocessConfig()`).
+        progress: show a progress bar.
+    """
+    from processing.io.dataset_query import open_spec
+
+    pre = PreprocessConfig() if preprocess is None else preprocess
+    t0 = time.perf_counter()
+    parts, names, entries = [], [], []
+    for spec in _specs(data):
+        reader, idx = open_spec(spec)
+        try:
+            parts.append(dataset_arrays(reader, idx, list(links), pre, progress=progress))
+        except (KeyError, ValueError) as e:
+            raise InputError(f"{spec}: {str(e).strip(chr(39) + chr(34))}") from None
+        names += [reader.entries[i]["item_id"] for i in idx]
+        entries += [reader.entries[i] for i in idx]
+    x = np.concatenate([p[0] for p in parts])
+    y = np.concatenate([p[1] for p in parts])
+    groups = [g for p in parts for g in p[2]]
+    return Dataset(x=x, y=y, groups=groups, names=names, entries=entries, spec=" + ".join(_specs(data)),
+                   seconds=time.perf_counter() - t0)
+
+
+@dataclass
+class Training:
+    """A trained classifier and how it was made (`train_classifier`'s result).
+
+    Attributes:
+        classifier: the trained `Classifier` (network, preprocessing, classes, links).
+        result: `TrainResult` (history, split indices, best epoch, seconds).
+        validation: `Report` on the held-out validation split.
+        meta: what is stored with the checkpoint (specs, split sizes, train config, DSP settings, ...).
+    """
+
+    classifier: Classifier
+    result: TrainResult
+    validation: Report
+    meta: dict = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        r = self.result
+        return (f"<Training on {self.meta.get('train_spec', '?')!r}: {r.train_idx.size} train / {r.val_idx.size} "
+                f"validation items, best epoch {r.best_epoch} of {len(r.history.get('train_loss', []))}, validation "
+                f"accuracy {100 * self.validation.accuracy:.1f} %, {r.seconds:.1f} s>")
+
+    def save(self, path: str | Path) -> list[Path]:
+        """Write the checkpoint `path` (.pt) and beside it STEM_curves.png, STEM_val_confusion.png and
+        STEM_val_confusion.csv; returns the paths written.
+
+        Args:
+            path: the checkpoint file.
+        """
+        from processing.classifier.checkpoint import save_checkpoint
+        from processing.classifier.metrics import plot_confusion, write_confusion_csv
+        from processing.plots.classifier import plot_history
+
+        path = Path(path)
+        stem = path.with_suffix("")
+        save_checkpoint(path, self.classifier, history=self.result.history, extra=self.meta)
+        return [path, plot_history(self.result.history, f"{stem}_curves.png", self.result.best_epoch,
+                                   title=f"training history ({self.meta.get('train_spec', '')})"),
+                plot_confusion(self.validation, f"{stem}_val_confusion.png"),
+                write_confusion_csv(self.validation, f"{stem}_val_confusion.csv")]
+
+
+def _initial_state(init, model_cfg: ModelConfig, links) -> dict | None:
+    """The weights training starts from: `init` (a `Classifier` or a checkpoint path) of the same network."""
+    if init is None:
+        return None
+    from processing.classifier.ensemble import SoftVote
+
+    clf = init
+    if not isinstance(init, Classifier):
+        from processing.classifier.checkpoint import load_checkpoint
+
+        clf = load_checkpoint(init)
+    if isinstance(clf.model, SoftVote):
+        raise InputError("init: an ensemble cannot initialise training; give one of its member checkpoints")
+    if clf.model.cfg != model_cfg or list(clf.links) != list(links):
+        raise InputError(f"init: the checkpoint's network ({clf.model.cfg.n_branches} links {clf.links}, input "
+                         f"{tuple(clf.model.cfg.input_size)}) differs from the one to train ({len(links)} links "
+                         f"{list(links)}, input {tuple(model_cfg.input_size)})")
+    return {k: v.detach().clone() for k, v in clf.model.state_dict().items()}
+
+
+def train_classifier(data, *, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None = None,
+                     model: ModelConfig | None = None, train_config: TrainConfig | None = None, init=None,
+                     progress: bool = False, log=None) -> Training:
+    """Train the seed's multiperspective DCNN on one or several datasets.
+
+    Args:
+        data: a dataset spec ``DIR[:FILTER]``, a sequence of them (loaded into one training set), or a
+            `Dataset` from `load_dataset`.
+        links: radar links, one network branch each (one link: the single-radar variant).
+        preprocess: input preprocessing (default `PreprocessConfig()`: 64 x 64, active span, dB).
+        model: network settings (default: the seed's DCNN for `links` at the preprocessing's size).
+        train_config: optimisation, split and augmentation settings (default `TrainConfig()`).
+        init: start from these weights instead of a random initialisation: a `Classifier` or a checkpoint
+            path of the same network (fine-tuning, transfer learning).
+        progress: show progress bars.
+        log: callable receiving progress lines (default: none).
+
+    Returns:
+        `Training` (save it with `Training.save(path)`).
+    """
+    pre = PreprocessConfig() if preprocess is None else preprocess
+    links = list(links)
+    mcfg = model if model is not None else ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links),
+                                                       input_size=(pre.n_velocity, pre.n_time))
+    tcfg = TrainConfig() if train_config is None else train_config
+    state = _initial_state(init, mcfg, links)
+    ds = data if isinstance(data, Dataset) else load_dataset(data, links, pre, progress=progress)
+    if log:
+        counts = ", ".join(f"{ACTIVITIES[k]}={n}" for k, n in zip(*np.unique(ds.y, return_counts=True)))
+        log(f"{len(ds.y)} items from {ds.spec} ({counts}); loaded in {ds.seconds:.1f} s")
+    deployments = None
+    if tcfg.val_split == "deployment":  # validation on held-out motion sources and deployment regions
+        from processing.classifier.splits import deployment_factors
+
+        deployments = deployment_factors(ds.entries)
+    res = train(ds.x, ds.y, mcfg, tcfg, groups=ds.groups, progress=progress, log=log or None, preprocess=pre,
+                init_state=state, deployments=deployments)
+    clf = Classifier(model=res.model, preprocess=pre, classes=list(ACTIVITIES), links=links)
+    va = res.val_idx
+    rep = classification_report(ds.y[va], clf.predict(ds.x[va]), ACTIVITIES)
+    meta = {"train_spec": ds.spec, "n_train": int(res.train_idx.size), "n_val": int(va.size),
+            "best_epoch": res.best_epoch, "train_seconds": res.seconds, "load_seconds": ds.seconds,
+            "train_config": tcfg.model_dump(mode="json"), "val_items": [ds.names[i] for i in va],
+            "val_accuracy": rep.accuracy, "init": _describe_init(init), "holdout": res.extra.get("holdout"),
+            "averaged": res.extra.get("averaged")}
+    # the DSP settings of the training data, so that `evaluate --recordings` processes real IQ the same way
+    dsps = {json.dumps(e.get("params", {}).get("radar", {}).get("dsp"), sort_keys=True) for e in ds.entries}
+    meta["dsp"] = json.loads(dsps.pop()) if len(dsps) == 1 else None
+    if log:
+        log(f"trained in {res.seconds:.1f} s ({len(res.history['train_loss'])} epochs, best {res.best_epoch}); "
+            f"validation ({va.size} items):\n{rep.summary()}")
+    return Training(classifier=clf, result=res, validation=rep, meta=meta)
+
+
+def _describe_init(init) -> str | None:
+    """What training started from, for the checkpoint's meta: a path, or a Classifier's training data."""
+    if init is None or not isinstance(init, Classifier):
+        return None if init is None else str(init)
+    return f"a Classifier trained on {init.meta.get('train_spec', '?')}"
+
+
+@dataclass
+class Evaluation:
+    """A classifier's predictions on labelled inputs (`evaluate_classifier`'s result).
+
+    Attributes:
+        report: accuracy, per-class precision/recall/F1, macro F1, confusion matrix.
+        y: true labels [N] (indices into `classes`).
+        proba: class probabilities [N, n_classes].
+        names: item names [N].
+        title: what was evaluated on what.
+    """
+
+    report: Report
+    y: np.ndarray
+    proba: np.ndarray
+    names: list[str]
+    title: str = ""
+
+    def __repr__(self) -> str:
+        return (f"<Evaluation {self.title!r}: {self.report.n} items, accuracy {100 * self.report.accuracy:.1f} %, "
+                f"macro F1 {100 * self.report.macro_f1:.1f} %>")
+
+    def save(self, out_dir: str | Path) -> list[Path]:
+        """confusion.png, confusion.csv, metrics.json and predictions.csv into `out_dir` (created).
+
+        Args:
+            out_dir: the folder.
+        """
+        from processing.atomic import write_text_atomic
+        from processing.classifier.metrics import plot_confusion, write_confusion_csv
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        classes, pred = self.report.classes, self.proba.argmax(1)
+        rows = ["name,true,predicted,confidence"] + [
+            f"{self.names[i]},{classes[self.y[i]]},{classes[pred[i]]},{self.proba[i, pred[i]]:.4f}"
+            for i in range(len(self.y))]
+        return [plot_confusion(self.report, out / "confusion.png"), write_confusion_csv(self.report, out / "confusion.csv"),
+                write_text_atomic(out / "metrics.json", json.dumps({"title": self.title, **self.report.as_dict()}, indent=1)),
+                write_text_atomic(out / "predictions.csv", "\n".join(rows) + "\n")]
+
+
+def evaluate_classifier(model, data, *, names=None, title: str | None = None, progress: bool = False) -> Evaluation:
+    """Predict and score a classifier on labelled data.
+
+    Args:
+        model: a `Classifier` or a checkpoint path.
+        data: a dataset spec or a sequence of them (loaded with the model's links and preprocessing), a
+            `Dataset`, or (x [N, n_links, V, T] float32, y [N]) arrays already preprocessed for the model.
+        names: item names [N] for arrays (default their index).
+        title: shown and stored (default: the model and the data).
+        progress: show a progress bar while loading.
+
+    Returns:
+        `Evaluation` (write it with `Evaluation.save(out_dir)`).
+    """
+    clf = model
+    if not hasattr(model, "predict_proba"):  # a path; anything that predicts (a Classifier) is used as it is
+        from processing.classifier.checkpoint import load_checkpoint
+
+        clf = load_checkpoint(model)
+    if isinstance(data, tuple):
+        x, y = np.asarray(data[0]), np.asarray(data[1])
+        names = [str(i) for i in range(len(y))] if names is None else list(names)
+        what = "arrays"
+    else:
+        ds = data if isinstance(data, Dataset) else load_dataset(data, clf.links, clf.preprocess, progress=progress)
+        x, y, names, what = ds.x, ds.y, ds.names, ds.spec
+    proba = clf.predict_proba(x)
+    rep = classification_report(y, proba.argmax(1), clf.classes)
+    if title is None:
+        title = f"{Path(model).name if clf is not model else 'the model'} on {what}"
+    return Evaluation(report=rep, y=np.asarray(y), proba=proba, names=list(names), title=title)
+
+
+def crossval_experiments(doc, where: str = "crossval plan") -> list[dict]:
+    """The experiments of a parsed cross-validation plan (``{experiments: [{name, train: SPEC, test: [SPEC, ...]}]}``).
+
+    Args:
+        doc: the plan's parsed mapping (e.g. from YAML).
+        where: how errors name the plan (its file).
+
+    Returns:
+        [{"name", "train", "test": [spec, ...]}]; InputError (one line, never quoting the file) when the structure
+        is wrong, a spec is not text, or a name is not a distinct file-name-safe word (it names a model file).
+    """
+    import re
+
+    exps = doc.get("experiments") if isinstance(doc, dict) else None
+    if not isinstance(exps, list) or not exps:
+        raise InputError(f"{where}: needs a list 'experiments' of {{name, train, test}}")
+    plan = []
+    for k, e in enumerate(exps):
+        if not isinstance(e, dict) or "train" not in e or "test" not in e:
+            raise InputError(f"{where}: experiment {k + 1} needs 'train' and 'test' specs")
+        tests = e["test"] if isinstance(e["test"], list) else [e["test"]]
+        name = e.get("name", f"exp{k + 1}")
+        # the name becomes part of a model file's name beside --out: no path, no duplicate
+        if not (isinstance(name, (str, int)) and re.fullmatch(r"[A-Za-z0-9_\-]{1,64}", str(name))):
+            raise InputError(f"{where}: experiment {k + 1}: name must be 1-64 letters, digits, _ or -")
+        if not all(isinstance(x, str) and x for x in [e["train"], *tests]):
+            raise InputError(f"{where}: experiment {k + 1}: train and test are dataset specs (text)")
+        plan.append({"name": str(name), "train": e["train"], "test": list(tests)})
+    names = [p["name"] for p in plan]
+    if len(set(names)) != len(names):
+        raise InputError(f"{where}: experiment names must be distinct (each names a model file)")
+    return plan
+
+
+@dataclass
+class CrossValidation:
+    """One row per (experiment, test spec), and each experiment's `Training`.
+
+    Attributes:
+        rows: [{"experiment", "train", "test", "n_train", "n_test", "accuracy_pct", "macro_f1_pct", "train_s",
+            "note"}].
+        trainings: {experiment name: Training}.
+    """
+
+    rows: list[dict]
+    trainings: dict[str, Training]
+
+    def __repr__(self) -> str:
+        return f"<CrossValidation: {len(self.trainings)} trainings, {len(self.rows)} tests>"
+
+    def markdown(self) -> str:
+        """The rows as a markdown table."""
+        md = ["| " + " | ".join(self.rows[0]) + " |", "|" + "---|" * len(self.rows[0])]
+        return "\n".join(md + ["| " + " | ".join(str(v) for v in r.values()) + " |" for r in self.rows])
+
+    def save(self, path: str | Path) -> list[Path]:
+        """The table as CSV at `path` (.csv) and markdown beside it (.md), and every experiment's model as
+        STEM_NAME.pt (with its curves and validation confusion, `Training.save`); returns the paths written.
+
+        Args:
+            path: the CSV file.
+        """
+        import csv
+        import io
+
+        from processing.atomic import write_text_atomic
+
+        path = Path(path)
+        out = [p for name, t in self.trainings.items() for p in t.save(path.with_name(f"{path.stem}_{name}.pt"))]
+        buf = io.StringIO(newline="")
+        w = csv.DictWriter(buf, fieldnames=list(self.rows[0]))
+        w.writeheader()
+        w.writerows(self.rows)
+        return out + [write_text_atomic(path, buf.getvalue()),
+                      write_text_atomic(path.with_suffix(".md"), self.markdown() + "\n")]
+
+
+def crossvalidate(experiments, *, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None = None,
+                  model: ModelConfig | None = None, train_config: TrainConfig | None = None, progress: bool = False,
+                  log=None) -> CrossValidation:
+    """Train on each experiment's training spec and test on each of its test specs (a test equal to the
+    training spec uses the held-out validation split).
+
+    Args:
+        experiments: [{"name", "train": spec, "test": [spec, ...]}] (e.g. `crossval_experiments` of a plan
+            file, `rtchannel.read_crossval_plan`).
+        links, preprocess, model, train_config: as `train_classifier`.
+        progress: show progress bars.
+        log: callable receiving progress lines (default: none).
+
+    Returns:
+        `CrossValidation` (write it with `CrossValidation.save(path)`).
+    """
+    rows, trainings = [], {}
+    for exp in experiments:
+        t = train_classifier(exp["train"], links=links, preprocess=preprocess, model=model, train_config=train_config,
+                             progress=progress, log=log)
+        trainings[exp["name"]] = t
+        for test in exp["test"]:
+            if test == exp["train"]:
+                rep, note = t.validation, "held-out validation split"
+            else:
+                ev = evaluate_classifier(t.classifier, test, title=f"{exp['name']} -> {test}", progress=progress)
+                rep, note = ev.report, ""
+                if log:
+                    log(f"{ev.title}:\n{rep.summary()}")
+            rows.append({"experiment": exp["name"], "train": exp["train"], "test": test,
+                         "n_train": int(t.result.train_idx.size), "n_test": rep.n,
+                         "accuracy_pct": round(100 * rep.accuracy, 2), "macro_f1_pct": round(100 * rep.macro_f1, 2),
+                         "train_s": round(t.result.seconds, 1), "note": note})
+    return CrossValidation(rows=rows, trainings=trainings)
+
+
+__all__ = ["CrossValidation", "DEFAULT_LINKS", "Dataset", "Evaluation", "Training", "crossvalidate",
+           "crossval_experiments", "evaluate_classifier", "load_dataset", "train_classifier"]
