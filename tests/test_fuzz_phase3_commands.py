@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import yaml
 from test_data_registry import fake  # noqa: F401 - the registry fixture (mirror, cache, HTTP origin)
-from test_real_eval import model_path  # noqa: F401 - the module-scoped tiny single-radar model
 
 import synthetic_mocap as sm
 from processing.errors import InputError
@@ -62,7 +61,7 @@ def test_image_size_is_bounded_before_decoding(tmp_path, size):
 
 
 @pytest.mark.parametrize("command", ["evaluate", "robustness"])
-def test_decompression_bomb_in_images_is_one_line(model_path, tmp_path, capsys, command):  # noqa: F811
+def test_decompression_bomb_in_images_is_one_line(model_path, tmp_path, capsys, command):
     folder = tmp_path / "imgs"
     folder.mkdir()
     png_bomb(folder / "1P01A01R01.png")
