@@ -76,7 +76,10 @@ class BodyShape(BaseModel):
 
     def bmi_at(self, stature_m: float) -> float:
         """The BMI [kg/m^2] of this body at stature `stature_m` (its `bmi`, or mass / stature^2)."""
-        return float(self.bmi) if self.bmi is not None else float(self.mass_kg) / float(stature_m) ** 2
+        if self.bmi is not None:
+            return float(self.bmi)
+        assert self.mass_kg is not None  # the validator sets bmi when mass_kg is not given
+        return float(self.mass_kg) / float(stature_m) ** 2
 
     def macro(self, stature_m: float) -> MacroValues:
         """MakeHuman's macro values of this body at stature `stature_m` (`rtchannel.body.shape_fit.fit_macro`).
