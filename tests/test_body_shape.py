@@ -16,9 +16,9 @@ from rtchannel.body.avatar import LODS, load_avatar
 from rtchannel.body.meshgeom import closest_points_on_mesh, winding_numbers
 from rtchannel.body.shape import BodyShape, BodyShapeRanges, draw_body_shape, reshape_motion
 from rtchannel.body.shape_fit import body_density, body_fat_fraction, mesh_bmi, mesh_volume
-from rtchannel.body.shaped_avatar import macro_key, shaped_avatar, shaped_rig, shaped_vertices
+from rtchannel.body.shaped_avatar import shaped_avatar, shaped_rig, shaped_vertices
 from rtchannel.body.skinning import rest_for_motion, skin_vertices
-from rtchannel.motion.pose import Motion, avatar_rig
+from rtchannel.motion.pose import avatar_rig
 from rtchannel.motion.procedural import generate
 
 FACES = load_avatar("full").faces

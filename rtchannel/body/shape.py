@@ -80,7 +80,10 @@ class BodyShape(BaseModel):
         Args:
             stature_m: the person's stature [m].
         """
-        return float(self.bmi) if self.bmi is not None else float(self.mass_kg) / float(stature_m) ** 2
+        if self.bmi is not None:
+            return float(self.bmi)
+        assert self.mass_kg is not None  # the validator sets bmi when mass_kg is not given
+        return float(self.mass_kg) / float(stature_m) ** 2
 
     def macro(self, stature_m: float) -> MacroValues:
         """MakeHuman's macro values of this body at stature `stature_m` (`rtchannel.body.shape_fit.fit_macro`).
