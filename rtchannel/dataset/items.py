@@ -28,6 +28,7 @@ from processing.errors import InputError
 _CACHE_SIZE = 8
 _MOTIONS: OrderedDict[str, Motion] = OrderedDict()
 _FILES: OrderedDict[str, Motion] = OrderedDict()
+_SCENES: OrderedDict[str, object] = OrderedDict()
 
 
 def _cached(cache: OrderedDict, key: str, make):
@@ -85,6 +86,18 @@ def build_motion(m: dict) -> Motion:
     return _cached(_MOTIONS, json.dumps(m, sort_keys=True, default=str), make)
 
 
+def item_scene(item: WorkItem, motion: Motion):
+    """The mesh backends' scene of an item: its drawn room (None: the default room) plus the chair its plan
+    asks for under `motion` (`Scene.for_motion`). Cached per process by motion, room and chair: the items of
+    one motion (its placements) share them, and the chair's fit skins the whole motion."""
+    def make():
+        from rtchannel.scene.spec import Scene
+
+        scene = Scene(item.room) if item.room is not None else None
+        return Scene.for_motion(motion, scene, item.chair) if item.chair != "none" else scene
+    return _cached(_SCENES, json.dumps([item.motion, item.room, item.chair], sort_keys=True, default=str), make)
+
+
 def item_gains(gain_set: dict, rng: np.random.Generator) -> np.ndarray:
     """Amplitude gains [21] of the seed's scatterers for a gain set: seed gains x scale x log-normal factor."""
     g = seed_scatterers(avatar_rig()).gains.astype(float).copy()
@@ -113,13 +126,8 @@ class _Job:
             self.options.update(accuracy=item.accuracy, calibration=item.calibration)
         if item.backend == "points":
             self.options["gains"] = self.gains
-        else:  # mesh backends: the drawn room and furniture (the points backend is free space)
-            from rtchannel.scene.spec import Scene
-
-            if item.room is not None:
-                self.options["scene"] = Scene(item.room)
-            if item.chair != "none":
-                self.options["scene"] = Scene.for_motion(self.motion, self.options.get("scene"), item.chair)
+        elif item.room is not None or item.chair != "none":  # mesh backends: the drawn room and furniture
+            self.options["scene"] = item_scene(item, self.motion)  # (the points backend is free space)
         self.signal_layer = item.snr_db is not None or item.clutter is not None
         self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
         self.clutter_info = {}
