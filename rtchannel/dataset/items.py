@@ -132,6 +132,7 @@ class _Job:
         self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
         self.clutter_info = {}
         self.noise_streams = dict(zip((link.name for link in self.radar.links), noise_ss.spawn(len(self.radar.links))))
+        self.setup_s = time.perf_counter() - self.t0  # motion (cached per motion), radar, gains, scene
 
     def transform(self, name, iq):
         """Signal layer on the raw IQ before DSP: (mesh backends: the gain set's overall factor) -> clutter ->
@@ -152,10 +153,12 @@ class _Job:
     def iq_transform(self):
         return self.transform if self.signal_layer else None
 
-    def finish(self, result, caught, shared_with: int = 1) -> dict:
-        """{"entry": index entry, "links": {link: arrays}} of the simulation `result`."""
+    def finish(self, result, caught, shared_with: int = 1, setup_s: float | None = None) -> dict:
+        """{"entry": index entry, "links": {link: arrays}} of the simulation `result` (`setup_s`: this item's
+        share of its group's set-up time [s], default its own)."""
         item, overall = self.item, self.overall
         links = {}
+        image_s = 0.0
         for name, lr in result.links.items():
             sig, iq = lr.signature, lr.iq
             if self.mesh_scale and not self.signal_layer:
@@ -166,7 +169,9 @@ class _Job:
                 from processing.realdata.spectrogram_image import glasgow_layout
                 from processing.realdata.spectrogram_image_writer import through_image
 
+                t = time.perf_counter()
                 sig = through_image(sig, glasgow_layout(float(item.motion["clip_s"])))
+                image_s += time.perf_counter() - t
             arrays = signature_arrays(sig)
             if item.keep_iq:
                 arrays["iq"] = np.asarray(iq, dtype=np.complex64)
@@ -182,8 +187,17 @@ class _Job:
                  "gain_set": item.gain_set["name"], "snr_db": item.snr_db, "seed": item.seed,
                  "n_time": int(next(iter(links.values()))["p_vt"].shape[1]) if links else 0,
                  "params": params, "seconds": round((time.perf_counter() - self.t0) / shared_with, 4),
-                 "cpu_seconds": round((time.process_time() - self.c0) / shared_with, 4)}
+                 "cpu_seconds": round((time.process_time() - self.c0) / shared_with, 4),
+                 "stage_seconds": self.stages(result.timing, image_s, setup_s)}
         return {"entry": entry, "links": links}
+
+    def stages(self, timing: dict, image_s: float, setup_s: float | None = None) -> dict[str, float]:
+        """Wall time [s] of this item by stage: "setup" (motion, radar, gains, scene), "backend" (its share of a
+        shared run), "synthesis" (with the signal layer), "dsp" and "image" (the Glasgow display chain); the
+        shard's HDF5 write comes after the entry is made and is not included."""
+        stages = {"setup": self.setup_s if setup_s is None else setup_s, "backend": timing.get("backend", 0.0),
+                  "synthesis": timing.get("synthesis", 0.0), "dsp": timing.get("dsp", 0.0), "image": image_s}
+        return {k: round(float(v), 4) for k, v in stages.items()}
 
 
 def run_item(item: WorkItem) -> dict:
@@ -222,4 +236,5 @@ def run_shared(items: list[WorkItem]) -> list[dict]:
         results = simulate_radars(jobs[0].motion, [j.radar for j in jobs], first.backend, keep_iq=first.keep_iq,
                                   iq_transforms=[j.iq_transform for j in jobs],
                                   noise_seeds=[it.seed for it in items], **jobs[0].options)
-    return [j.finish(r, caught, len(jobs)) for j, r in zip(jobs, results)]
+    setup_s = sum(j.setup_s for j in jobs) / len(jobs)  # the first job builds the shared motion and scene
+    return [j.finish(r, caught, len(jobs), setup_s) for j, r in zip(jobs, results)]
