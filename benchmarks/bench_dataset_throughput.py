@@ -56,7 +56,8 @@ def child(args) -> dict:
     ids = {it.item_id for it in chosen}
     with tempfile.TemporaryDirectory(prefix="bench_throughput_", dir=args.tmp) as d:
         t0 = time.perf_counter()
-        s = run_plan(plan, Path(d) / "ds", workers=args.workers, progress=False, item_filter=lambda it: it.item_id in ids)
+        s = run_plan(plan, Path(d) / "ds", workers=args.workers, progress=False,
+                     item_filter=lambda it: it.item_id in ids)
         wall = time.perf_counter() - t0
         entries = [json.loads(line) for line in (Path(d) / "ds" / "index.jsonl").read_text().splitlines() if line]
     stages: dict[str, float] = {}
@@ -85,7 +86,8 @@ def run_child(code: Path, config: str, args, limit_motions: int = 0) -> dict:
 
 def summary(runs: list[dict]) -> dict:
     rates = [r["items_per_min"] for r in runs]
-    return {"items": runs[0]["items"], "items_per_min_median": statistics.median(rates), "items_per_min_min": min(rates),
+    return {"items": runs[0]["items"], "items_per_min_median": statistics.median(rates),
+            "items_per_min_min": min(rates),
             "items_per_min_max": max(rates), "wall_s_median": statistics.median(r["wall_s"] for r in runs),
             "cpu_per_item_s_median": statistics.median(r["cpu_per_item_s"] for r in runs),
             "stage_seconds": {k: statistics.median(r["stage_seconds"].get(k, 0.0) for r in runs)

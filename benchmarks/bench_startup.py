@@ -188,7 +188,8 @@ def main() -> int:
             timed = _timed(label, argvs, codes, args, pass_s)
             entry = timed["this"]
             line = (f"{label:22s} wall median {entry['wall_median_s']:6.2f} s (min {entry['wall_min_s']:.2f}, max "
-                    f"{entry['wall_max_s']:.2f}), cpu {entry['cpu_median_s']:.2f} s, x{entry['ratio_to_python_pass']:.0f}"
+                    f"{entry['wall_max_s']:.2f}), cpu {entry['cpu_median_s']:.2f} s, "
+                    f"x{entry['ratio_to_python_pass']:.0f}"
                     f" python -c pass, load {entry['load_1min']:.1f}")
             if "baseline" in timed:
                 base = timed["baseline"]
@@ -198,8 +199,9 @@ def main() -> int:
                 diff = identical(out_dir["this"] / "signature.h5", out_dir["baseline"] / "signature.h5")
                 entry["differs_from_baseline"] = diff
                 pr = entry["paired_ratio"]
-                line += (f"\n{'':22s} baseline median {base['wall_median_s']:6.2f} s (min {base['wall_min_s']:.2f}, max "
-                         f"{base['wall_max_s']:.2f}), cpu {base['cpu_median_s']:.2f} s: ratio {entry['ratio_to_baseline']:.2f}"
+                line += (f"\n{'':22s} baseline median {base['wall_median_s']:6.2f} s "
+                         f"(min {base['wall_min_s']:.2f}, max {base['wall_max_s']:.2f}), "
+                         f"cpu {base['cpu_median_s']:.2f} s: ratio {entry['ratio_to_baseline']:.2f}"
                          f" (paired: median {pr['median']:.2f}, min {pr['min']:.2f}, max {pr['max']:.2f});"
                          f" signature.h5 {'bit-identical' if not diff else 'DIFFERS: ' + ', '.join(diff[:8])}")
             print(line, flush=True)
@@ -227,7 +229,8 @@ def main() -> int:
                     print(row, flush=True)
             result["cases"][label] = entry
     result["load_after"] = os.getloadavg()
-    print(f"python -c pass: {result['python_pass_s'] * 1e3:.0f} ms; load average before {result['load_before'][0]:.1f}, "
+    print(f"python -c pass: {result['python_pass_s'] * 1e3:.0f} ms; "
+          f"load average before {result['load_before'][0]:.1f}, "
           f"after {result['load_after'][0]:.1f} ({os.cpu_count()} CPUs)")
     if args.json:
         args.json.write_text(json.dumps(result, indent=2) + "\n")

@@ -41,7 +41,8 @@ def _plain_pvt_power(iq, wf: Waveform, cfg: DSPConfig) -> np.ndarray:
     if cfg.range_sum == "coherent":
         x, f_ref = mti_filter(proj.coherent, prf, wf.carrier_hz, cfg)[:, None], proj.coherent_carrier_hz
     else:
-        x, f_ref = mti_filter(proj.profiles, prf, wf.carrier_hz, cfg)[:, doppler_band(proj.range, wf, cfg)], wf.carrier_hz
+        band = doppler_band(proj.range, wf, cfg)
+        x, f_ref = mti_filter(proj.profiles, prf, wf.carrier_hz, cfg)[:, band], wf.carrier_hz
     cols = []
     for s in range(0, x.shape[0] - w + 1, hop):
         spec = np.fft.fft(x[s:s + w].T * taper, n=nfft, axis=-1)[:, order]  # [R, nfft]

@@ -117,7 +117,7 @@ class Signature:
                 return False
         return True
 
-    __hash__ = None  # mutable arrays: not hashable
+    # not hashable (mutable arrays): @dataclass with eq=True and frozen=False sets __hash__ = None
 
     def to_xarray(self):
         """The signatures as an `xarray.Dataset` with coordinates ``velocity`` [m/s], ``time`` [s], ``range``
@@ -132,6 +132,7 @@ class Signature:
                 "range_distribution": (("range", "time"), self.range_distribution, {"long_name": "p'(r,t), eq. 10",
                                                                                     "units": "1"}),
                 "valid": ("time", np.asarray(self.valid, bool), {"long_name": "window carries signal"})}
+        coords: dict[str, tuple]  # the range-Doppler axes may join below
         coords = {"velocity": ("velocity", self.velocity, {"units": "m/s", "long_name": "radial velocity, "
                                                                                          "+ = approaching"}),
                   "time": ("time", self.time, {"units": "s", "long_name": "window centre"}),
@@ -266,8 +267,9 @@ def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig(),
     starts = np.arange(n_win) * hop
     time = proj.t0 + (starts + w / 2) * wf.pri_s
 
+    coherent = proj.coherent
     if cfg.range_sum == "coherent":
-        if proj.coherent is None:
+        if coherent is None:
             raise ValueError("range_sum 'coherent' needs the projection's coherent slow-time signal")
         f_ref = proj.coherent_carrier_hz
     else:
@@ -276,10 +278,10 @@ def signatures_from_projection(proj: Projection, cfg: DSPConfig = DSPConfig(),
     v_max = C0 / (4 * f_ref * wf.pri_s)
     keep = np.ones(nfft, bool) if cfg.velocity_crop_mps is None else \
         np.abs(velocity) <= cfg.velocity_crop_mps * (1 + 1e-12)
-    if cfg.range_sum == "coherent":
-        x = mti_filter(proj.coherent, prf, wf.carrier_hz, cfg)
+    if coherent is not None and cfg.range_sum == "coherent":
+        x = mti_filter(coherent, prf, wf.carrier_hz, cfg)
         # unit-energy taper: a window's total power nfft sum |x w|^2 is at most nfft max |x|^2
-        ref = nfft * float(np.max(np.abs(proj.coherent) ** 2)) if n_c else 0.0
+        ref = nfft * float(np.max(np.abs(coherent) ** 2)) if n_c else 0.0
         spec = _stft(x, starts, cfg, lambda s: np.abs(s) ** 2, keep)
     else:
         red = (lambda s: (np.abs(s) ** 2).sum(axis=1)) if cfg.range_sum == "incoherent" else \

@@ -20,6 +20,8 @@ import multiprocessing
 import os
 import sys
 import threading
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
 from pathlib import Path
 
 TIMEOUT_S = 300.0  # the longest wait for the child's figures (drawn in ~1 s) before drawing them here
@@ -57,7 +59,8 @@ class FigureWorker:
     starts on entry when `can_fork`, and is stopped on exit)."""
 
     def __init__(self, enabled: bool = True):
-        self._proc = self._conn = None
+        self._proc: BaseProcess | None = None
+        self._conn: Connection | None = None
         if enabled and can_fork():
             ctx = multiprocessing.get_context("fork")
             try:
@@ -90,10 +93,11 @@ class FigureWorker:
         Returns:
             The paths written (pvt.png, mean_velocity.png, range.png, range_doppler.png).
         """
-        if self._proc is not None:
+        conn = self._conn
+        if self._proc is not None and conn is not None:
             try:
-                self._conn.send((sigs, Path(out_dir), title))
-                answer = self._conn.recv() if self._conn.poll(TIMEOUT_S) else None
+                conn.send((sigs, Path(out_dir), title))
+                answer = conn.recv() if conn.poll(TIMEOUT_S) else None
             except (OSError, EOFError):  # the child died (killed, out of memory)
                 answer = None
             self.close(answered=answer is not None)

@@ -162,7 +162,8 @@ def _nu_kernel(pos, targets, rel, az_sorted, el_sorted, d_min, frame, hit, t_az,
             # angular window: a vertex at distance s along the segment matters within reach * r1(s) of it, and
             # r1(s) / s = sqrt(lambda (L - s) / (s L)) is largest at the nearest vertex
             s0 = min(max(d_min[b], 1e-3), length)
-            half_el = 1.1 * reach * np.sqrt(wavelength * max(length - s0, 0.0) / (s0 * length)) + 1e-6  # 10 %: sin < angle
+            # 10 %: sin < angle
+            half_el = 1.1 * reach * np.sqrt(wavelength * max(length - s0, 0.0) / (s0 * length)) + 1e-6
             half = min(half_el / max(hn, 1e-3), np.pi)  # in azimuth: wider for steep segments
             lo = np.searchsorted(az_sorted[b], t_az[i] - half)
             hi = np.searchsorted(az_sorted[b], t_az[i] + half)

@@ -139,7 +139,7 @@ class _Job:
             self.options["scene"] = item_scene(item, self.motion)  # (the points backend is free space)
         self.signal_layer = item.snr_db is not None or item.clutter is not None
         self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
-        self.clutter_info = {}
+        self.clutter_info: dict[str, dict] = {}
         self.noise_streams = dict(zip((link.name for link in self.radar.links), noise_ss.spawn(len(self.radar.links))))
         self.setup_s = time.perf_counter() - self.t0  # motion (cached per motion), radar, gains, scene
 

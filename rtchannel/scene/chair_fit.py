@@ -116,8 +116,8 @@ def chair_for(motion: Motion, *, material: str = "wood", lod: str = "10k", back_
     k = motion.rig.height / NOMINAL_HEIGHT_M  # the pelvis search region is sized for a 1.75 m body
     if seat_height is not None:
         h, how = float(seat_height), "given"
-    elif (h := procedural_seat_height(motion)) is not None:
-        how = "the procedural generator's seat"
+    elif (drawn := procedural_seat_height(motion)) is not None:
+        h, how = drawn, "the procedural generator's seat"
     else:
         under = ((np.abs(y) < _PELVIS_HALF_WIDTH_M * k) & (x > _PELVIS_FORE_AFT_M[0] * k)
                  & (x < _PELVIS_FORE_AFT_M[1] * k) & (z < mid[:, None, 2]))
@@ -184,5 +184,5 @@ CHAIR_MODES = ("auto", "none")
 DEFAULT_CHAIR = "none"
 
 
-__all__ = ["CHAIR_MODES", "DEFAULT_CHAIR", "SEATED_ACTIVITIES", "chair_for", "chair_penetration", "procedural_seat_height",
-           "seated_frames", "wants_chair"]
+__all__ = ["CHAIR_MODES", "DEFAULT_CHAIR", "SEATED_ACTIVITIES", "chair_for", "chair_penetration",
+           "procedural_seat_height", "seated_frames", "wants_chair"]
