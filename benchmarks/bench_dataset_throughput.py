@@ -15,7 +15,7 @@ ratio of the medians (this / baseline) and the load average. Where the index rec
 timed runs each checkout runs one motion untimed (numba fills its on-disk cache on a first run).
 
 Run: python benchmarks/bench_dataset_throughput.py --config glasgow --backend facets [--motions-per-source 1]
-     [--workers 2] [--repeats 3] [--baseline DIR] [--baseline-config PLAN] [--json F]
+     [--limit-motions N] [--workers 2] [--repeats 3] [--baseline DIR] [--baseline-config PLAN] [--json F]
 """
 from __future__ import annotations
 
@@ -107,7 +107,8 @@ def main() -> int:
     ap.add_argument("--tmp", default=tempfile.gettempdir(), help="folder for the temporary datasets")
     ap.add_argument("--json", type=Path, help="also write the results here")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
-    ap.add_argument("--limit-motions", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--limit-motions", type=int, default=0,
+                    help="then keep only the first N motions of the subset (default: all)")
     args = ap.parse_args()
     if args.child:
         print(json.dumps(child(args)), flush=True)
@@ -123,7 +124,7 @@ def main() -> int:
     runs = {t: [] for t in codes}
     for _ in range(args.repeats):
         for tag, (code, config) in codes.items():
-            r = run_child(code, config, args)
+            r = run_child(code, config, args, limit_motions=args.limit_motions)
             r["load_1min"] = os.getloadavg()[0]
             runs[tag].append(r)
             print(f"{tag:8s} {r['items']} items in {r['wall_s']:.1f} s: {r['items_per_min']:.1f} items/min, "
@@ -140,8 +141,14 @@ def main() -> int:
         a, b = out["results"]["this"], out["results"]["baseline"]
         out["ratio_items_per_min"] = a["items_per_min_median"] / b["items_per_min_median"]
         out["ratio_cpu_per_item"] = b["cpu_per_item_s_median"] / a["cpu_per_item_s_median"]
+        # run k of this checkout against run k of the baseline, started next to it (the same machine load)
+        paired = [x["items_per_min"] / y["items_per_min"] for x, y in zip(runs["this"], runs["baseline"])]
+        out["paired_ratio_items_per_min"] = {"median": statistics.median(paired), "min": min(paired),
+                                             "max": max(paired)}
         print(f"this / baseline: items per minute x{out['ratio_items_per_min']:.2f}, CPU per item "
-              f"x{out['ratio_cpu_per_item']:.2f} less; load average {out['load_before'][0]:.1f} before, "
+              f"x{out['ratio_cpu_per_item']:.2f} less (paired items/min ratios: median "
+              f"{out['paired_ratio_items_per_min']['median']:.2f}, "
+              f"min {min(paired):.2f}, max {max(paired):.2f}); load average {out['load_before'][0]:.1f} before, "
               f"{out['load_after'][0]:.1f} after ({out['cpus']} CPUs)")
     if args.json:
         args.json.write_text(json.dumps(out, indent=1) + "\n")
