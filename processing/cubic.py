@@ -1,12 +1,14 @@
-"""Cubic Hermite splines, PCHIP slopes and log-sum-exp in numpy alone (the synthesiser's delay curves with
-rates, the procedural motions' key-frame curves and soft minimum).
+"""Cubic Hermite and not-a-knot splines, PCHIP slopes and log-sum-exp in numpy alone (the synthesiser's delay
+curves, with or without delay rates; the procedural motions' key-frame curves and soft minimum).
 
-Importing `scipy.interpolate` (and `scipy.special`, which it pulls in) costs about 0.5 s of the 1.1 s a
-points `rtchannel simulate` spends importing, for these few small functions. They are the same computations
-in numpy, operation for operation in the order SciPy 1.17 performs them (`CubicHermiteSpline`'s coefficients
-and `PPoly`'s evaluation as a power sum, its derivative's coefficients; PCHIP's Fritsch-Carlson interior
-slopes; `logsumexp` with every maximal element taken out of the sum), so delays and motions are bit-identical
-to the SciPy route's (tests/test_cubic.py compares them).
+A points `rtchannel simulate` needed `scipy.interpolate` (and with it `scipy.spatial`, `scipy.linalg`,
+`scipy.optimize`, ...) for these few small functions only: ~0.2 s of its ~0.9 s of CPU, on top of the
+`scipy.fft` its fast-time stage needs (measured, 2-core machine). They are the same computations in numpy,
+operation for operation in the order SciPy 1.17 performs them (`CubicHermiteSpline`'s coefficients, `PPoly`'s
+evaluation as a power sum and its derivative's coefficients; `CubicSpline`'s not-a-knot system solved in
+LAPACK dgtsv's elimination order, as `solve_banded` does; PCHIP's Fritsch-Carlson interior slopes;
+`logsumexp` with every maximal element taken out of the sum), so delays and motions are bit-identical to the
+SciPy route's (tests/test_cubic.py compares them, and fails if a SciPy release changes its order).
 """
 from __future__ import annotations
 
@@ -44,7 +46,8 @@ class HermiteSpline:
         self.c: tuple[np.ndarray, ...] = (t / dxr, (slope - d[:-1]) / dxr - t, d[:-1], y[:-1])
 
     def derivative(self) -> "HermiteSpline":
-        """The first derivative (a piecewise quadratic; `PPoly.derivative`'s coefficients 3 c0, 2 c1, c2)."""
+        """The first derivative of the cubic (a piecewise quadratic; `PPoly.derivative`'s coefficients 3 c0,
+        2 c1, c2); not itself differentiable again here."""
         out = object.__new__(HermiteSpline)
         out.x, out.trailing = self.x, self.trailing
         c0, c1, c2, _ = self.c
