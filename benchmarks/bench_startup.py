@@ -6,8 +6,9 @@ walk, the seed's two radars, 10k body, room), figures included (they are on by d
 Each case runs as its own process (`python -m rtchannel.cli simulate ...`, this checkout first on the path,
 so an editable install of another checkout is not what gets timed), after one untimed warm-up run (numba
 and Dr.Jit fill their on-disk caches on a first run). Reported per case: median, min and max wall time [s]
-of `--repeats` runs, median CPU time (user + sys of the child) [s], and the ratio of the median wall time
-to a `python -c pass` baseline measured in the same session (which tracks how loaded the machine is).
+of `--repeats` runs, median CPU time (user + sys of the command and the processes it waited for, such as
+its figure process) [s], and the ratio of the median wall time to a `python -c pass` baseline measured in
+the same session (which tracks how loaded the machine is).
 `--importtime` adds, per case, one `python -X importtime` run: the cumulative import time [s] of the
 top-level modules the command loads. `--split` adds, per case, `--repeats` runs of
 `benchmarks/startup_stages.py` (the same command inside one process, its stages timed apart: imports per
@@ -15,7 +16,8 @@ stage, scene load, backend, synthesis+DSP, signature.h5, figures; medians [s]) a
 start-up (whole process minus the in-process total). `--code DIR` times another checkout instead.
 
 `--baseline DIR` times a second checkout (e.g. `git archive main | tar -x -C DIR`) in the same session,
-runs interleaved with this one's so both see the same machine load, prints the ratio of the medians, and
+runs interleaved with this one's so both see the same machine load, prints the ratio of the medians and the
+median, min and max of the ratios pair by pair (run k of this checkout against the baseline's run k), and
 checks that both wrote bit-identical signature.h5 contents (every dataset's bytes, dtype and shape, every
 attribute): a start-up change must not change results.
 
@@ -117,9 +119,10 @@ def signature_contents(path: Path) -> dict[str, tuple]:
 
 
 def identical(a: Path, b: Path) -> list[str]:
-    """Names of the datasets/attributes that differ between two signature files ([] if bit-identical)."""
+    """Names of the datasets/attributes that differ between two signature files ([] if bit-identical), but
+    for the root's `timing` attribute (the run's own stage times, different on every run)."""
     ca, cb = signature_contents(a), signature_contents(b)
-    return sorted(k for k in ca.keys() | cb.keys() if ca.get(k) != cb.get(k))
+    return sorted(k for k in ca.keys() | cb.keys() if ca.get(k) != cb.get(k) and k != "/@timing")
 
 
 def cases(backends: list[str], out: Path) -> dict[str, list[str]]:
@@ -150,6 +153,9 @@ def _timed(label: str, argvs: dict[str, list[str]], codes: dict[str, Path], args
         out[tag] = {"wall_median_s": statistics.median(walls), "wall_min_s": min(walls), "wall_max_s": max(walls),
                     "cpu_median_s": statistics.median(c for _, c in rs),
                     "ratio_to_python_pass": statistics.median(walls) / pass_s[tag], "load_1min": os.getloadavg()[0]}
+    if "baseline" in runs:  # pair by pair (run k of this against run k of the baseline, started next to it)
+        ratios = [a[0] / b[0] for a, b in zip(runs["this"], runs["baseline"])]
+        out["this"]["paired_ratio"] = {"median": statistics.median(ratios), "min": min(ratios), "max": max(ratios)}
     return out
 
 
@@ -183,7 +189,8 @@ def main() -> int:
             timed = _timed(label, argvs, codes, args, pass_s)
             entry = timed["this"]
             line = (f"{label:22s} wall median {entry['wall_median_s']:6.2f} s (min {entry['wall_min_s']:.2f}, max "
-                    f"{entry['wall_max_s']:.2f}), cpu {entry['cpu_median_s']:.2f} s, x{entry['ratio_to_python_pass']:.0f}"
+                    f"{entry['wall_max_s']:.2f}), cpu {entry['cpu_median_s']:.2f} s, "
+                    f"x{entry['ratio_to_python_pass']:.0f}"
                     f" python -c pass, load {entry['load_1min']:.1f}")
             if "baseline" in timed:
                 base = timed["baseline"]
@@ -192,7 +199,11 @@ def main() -> int:
                 out_dir = {t: Path(argvs[t][argvs[t].index("--out") + 1]) for t in codes}
                 diff = identical(out_dir["this"] / "signature.h5", out_dir["baseline"] / "signature.h5")
                 entry["differs_from_baseline"] = diff
-                line += (f"\n{'':22s} baseline median {base['wall_median_s']:6.2f} s: ratio {entry['ratio_to_baseline']:.2f};"
+                pr = entry["paired_ratio"]
+                line += (f"\n{'':22s} baseline median {base['wall_median_s']:6.2f} s "
+                         f"(min {base['wall_min_s']:.2f}, max {base['wall_max_s']:.2f}), "
+                         f"cpu {base['cpu_median_s']:.2f} s: ratio {entry['ratio_to_baseline']:.2f}"
+                         f" (paired: median {pr['median']:.2f}, min {pr['min']:.2f}, max {pr['max']:.2f});"
                          f" signature.h5 {'bit-identical' if not diff else 'DIFFERS: ' + ', '.join(diff[:8])}")
             print(line, flush=True)
             if args.importtime:
@@ -219,7 +230,8 @@ def main() -> int:
                     print(row, flush=True)
             result["cases"][label] = entry
     result["load_after"] = os.getloadavg()
-    print(f"python -c pass: {result['python_pass_s'] * 1e3:.0f} ms; load average before {result['load_before'][0]:.1f}, "
+    print(f"python -c pass: {result['python_pass_s'] * 1e3:.0f} ms; "
+          f"load average before {result['load_before'][0]:.1f}, "
           f"after {result['load_after'][0]:.1f} ({os.cpu_count()} CPUs)")
     if args.json:
         args.json.write_text(json.dumps(result, indent=2) + "\n")

@@ -34,7 +34,9 @@ TARGETS = {
     ("rtchannel.backends.facets", "mesh_paths"): "facets trace",
     ("rtchannel.pipeline", "process_paths"): "synthesis+dsp",
     ("rtchannel.pipeline", "SimulationResult.save"): "save h5",
-    ("rtchannel.pipeline", "SimulationResult.plot"): "plots",
+    ("rtchannel.pipeline", "SimulationResult.plot"): "plots",  # before the API's result nouns: plot wrote the PNGs
+    ("rtchannel.pipeline", "SimulationResult.save_figures"): "plots",
+    ("processing.plots.figure_worker", "FigureWorker.save_figures"): "plots",  # drawn in a child: the wait for it
 }
 
 _stack = ["other"]

@@ -4,8 +4,9 @@ benchmarks/bench_startup.py, not here).
 `rtchannel --help` and the argument parser of every command load none of the heavy libraries; the facets
 backend loads Mitsuba but not Sionna RT (nor its preview libraries) nor torch; the points backend's whole chain
 (procedural motion, paths, synthesis, DSP, signature.h5) runs without the ray tracer (Mitsuba, Dr.Jit, Sionna RT),
-the mesh library (trimesh), numba or torch, and with the default (rectangular) tapers and moving-average MTI
-without scipy.signal; its figures use matplotlib without pyplot.
+the mesh library (trimesh), numba or torch, without scipy.interpolate and scipy.spatial, and with the default
+(rectangular) tapers and moving-average MTI without scipy.signal; its figures use matplotlib without pyplot, in a
+second process (`processing.plots.figure_worker`), so the command's own process never loads matplotlib.
 Each check runs in a fresh interpreter: this test process has long since imported everything.
 """
 from __future__ import annotations
@@ -57,21 +58,45 @@ def test_points_simulate_loads_no_ray_tracer_nor_torch(tmp_path):
     code = (f"from rtchannel.cli import main\n"
             f"assert main(['simulate', '--backend', 'points', '--activity', 'walk', '--duration', '2.0', "
             f"'--out', {str(out)!r}, '--quiet', '--no-plots']) == 0\n")
-    loaded = _loaded(code, {*HEAVY, "numba", "scipy.signal"})
+    # nor scipy.interpolate and scipy.spatial (~0.2 s of CPU): the motion's curves and the synthesiser's delay
+    # spline are processing.cubic's
+    loaded = _loaded(code, {*HEAVY, "numba", "scipy.signal", "scipy.interpolate", "scipy.spatial"})
     assert loaded == []
     assert (out / "signature.h5").is_file() and not (out / "pvt.png").exists()
 
 
 def test_points_figures_use_matplotlib_without_pyplot(tmp_path):
+    # the figures as the CLI draws them when it cannot fork (processing.plots.figure_worker's fallback)
     out = tmp_path / "walk"
-    code = (f"from rtchannel.cli import main\n"
-            f"assert main(['simulate', '--backend', 'points', '--activity', 'walk', '--duration', '2.0', "
-            f"'--out', {str(out)!r}, '--quiet']) == 0\n")
+    code = (f"from rtchannel.pipeline import simulate\n"
+            f"from rtchannel.motion.pose import Motion\n"
+            f"import rtchannel.motion\n"
+            f"from processing.plots.figure_worker import FigureWorker\n"
+            f"r = simulate(Motion.procedural('walk', duration=2.0))\n"
+            f"with FigureWorker(enabled=False) as w:\n"
+            f"    assert not w.in_child and len(w.save_figures(r.signatures, {str(out)!r}, 'walk')) == 4\n")
     loaded = _loaded(code, {*HEAVY, "matplotlib.pyplot"})
     assert "matplotlib" in loaded and "matplotlib.pyplot" not in loaded
     assert not set(loaded) & {"torch", "mitsuba", "drjit", "sionna", "trimesh"}
     for png in ("pvt.png", "mean_velocity.png", "range.png", "range_doppler.png"):
         assert (out / png).stat().st_size > 10_000
+
+
+def test_points_simulate_draws_its_figures_in_a_second_process(tmp_path):
+    # matplotlib is imported, and the figures drawn, by the child `FigureWorker` forks before the simulation:
+    # this process never loads it; the PNGs are the same as drawn here
+    out = tmp_path / "walk"
+    code = (f"from rtchannel.cli import main\n"
+            f"assert main(['simulate', '--backend', 'points', '--activity', 'walk', '--duration', '2.0', "
+            f"'--out', {str(out)!r}, '--quiet']) == 0\n")
+    assert _loaded(code, {*HEAVY, "matplotlib.pyplot"}) == []
+    here = tmp_path / "here"
+    code = (f"from rtchannel.results import SimulationResult\n"
+            f"r = SimulationResult.load({str(out / 'signature.h5')!r})\n"
+            f"r.save_figures({str(here)!r}, title='walk (points, 0 deg)')\n")
+    _loaded(code, {"matplotlib"})
+    for png in ("pvt.png", "mean_velocity.png", "range.png", "range_doppler.png"):
+        assert (out / png).read_bytes() == (here / png).read_bytes()
 
 
 def test_facets_simulate_builds_the_scene_once_without_sionna(tmp_path):

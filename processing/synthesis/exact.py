@@ -24,8 +24,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
+from processing.cubic import HermiteSpline, not_a_knot_spline
 from processing.pathset import PathSet
 from processing.radar.receiver import ReceiverConfig, receive_inplace
 from processing.radar.waveform import C0, Waveform
@@ -63,9 +63,9 @@ class _PersistentPaths:
             self.delays = delays
         elif paths.delay_rates is not None:
             rates = np.nan_to_num(paths.delay_rates)
-            self.spline = CubicHermiteSpline(paths.times, delays, rates, axis=0)
+            self.spline = HermiteSpline(paths.times, delays, rates)
         else:
-            self.spline = CubicSpline(paths.times, delays, axis=0)
+            self.spline = not_a_knot_spline(paths.times, delays)
         self.dspline = None if self.spline is None else self.spline.derivative()
 
     def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -224,7 +224,7 @@ def grid_pieces(paths: PathSet) -> tuple:
         d, rate_max, delay_max = prepare_frames(t, paths.delays, paths.delay_rates, g)
         r = paths.delay_rates  # NaN at absent frames, read as 0 by the kernel (np.nan_to_num, as _PersistentPaths)
         if r is None:
-            r = CubicSpline(t, d, axis=0)(t, 1)
+            r = not_a_knot_spline(t, d)(t, 1)
             present = g != 0
             rate_max = float(np.abs(r[present]).max()) if present.any() else 0.0
         return t, d[:-1], d[1:], r[:-1], r[1:], g[:-1], g[1:], rate_max, delay_max

@@ -23,6 +23,7 @@ DSP can resolve, and the patches of one delay cell (1/16 of a range bin) are mer
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import weakref
 from dataclasses import dataclass
@@ -64,14 +65,23 @@ def patch_size_m(range_resolution_m: float) -> float:
 
 def _subdivide(a: np.ndarray, b: np.ndarray, c: np.ndarray, n: int) -> np.ndarray:
     """The n^2 congruent sub-triangles [n^2, 3, 3] of triangle (a, b, c) on a barycentric grid."""
-    pts = lambda i, j: a + (b - a) * (i / n) + (c - a) * (j / n)  # noqa: E731
-    out = []
+    i, j = _grid_corners(n)
+    return a + (b - a) * (i / n)[..., None] + (c - a) * (j / n)[..., None]
+
+
+@functools.lru_cache(maxsize=64)
+def _grid_corners(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric grid indices (i [n^2, 3], j [n^2, 3]) of the corners of `_subdivide`'s sub-triangles: row by
+    row, each upward triangle (i, j), (i + 1, j), (i, j + 1) followed by the downward one beside it."""
+    tris = []
     for i in range(n):
         for j in range(n - i):
-            out.append((pts(i, j), pts(i + 1, j), pts(i, j + 1)))
+            tris.append(((i, j), (i + 1, j), (i, j + 1)))
             if i + j < n - 1:
-                out.append((pts(i + 1, j), pts(i + 1, j + 1), pts(i, j + 1)))
-    return np.array(out)
+                tris.append(((i + 1, j), (i + 1, j + 1), (i, j + 1)))
+    ij = np.array(tris, dtype=float)  # [n^2, 3, 2]
+    ij.setflags(write=False)
+    return ij[..., 0], ij[..., 1]
 
 
 _PATCHES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()

@@ -103,14 +103,36 @@ def shadow_nu(pos, targets, verts, frame, hit, wavelength: float, faces=None) ->
     t = np.asarray(targets, float) - pos
     t_az = np.angle(np.exp(1j * (np.arctan2(t[:, 1], t[:, 0]) - bearing[frame])))
     t_el = np.arcsin(np.clip(t[:, 2] / np.linalg.norm(t, axis=1), -1, 1))
-    _nu_kernel(pos, np.ascontiguousarray(targets, float), verts, np.ascontiguousarray(order), az_sorted,
-               np.ascontiguousarray(el_sorted), dist.min(axis=1), frame, np.ascontiguousarray(hit, np.bool_), t_az,
-               t_el, float(wavelength), out)
+    # the vertices relative to pos in that order: a segment's window is read in sequence
+    rel = np.ascontiguousarray(np.take_along_axis(d, order[..., None], axis=1))
+    _nu_kernel(pos, np.ascontiguousarray(targets, float), rel, az_sorted, np.ascontiguousarray(el_sorted),
+               dist.min(axis=1), frame, np.ascontiguousarray(hit, np.bool_), t_az, t_el, float(wavelength), out,
+               max(1, min(len(frame), 64 * numba.get_num_threads())))
     return out
 
 
+@numba.njit(cache=True, nogil=True, fastmath={"nnan", "ninf", "nsz"})
+def _outline(xs, ys, m, cs, sn, r_cap):
+    """min over the directions (cs[j], sn[j]) of how far the points (xs, ys)[:m] within a strip of half-width
+    `STRIP` along each reach (a direction without one, or reaching past it: r_cap), capped at r_cap.
+
+    One direction at a time over all points, branch-free, so the loop vectorises; the flags allow no
+    reassociation or contraction, so every value is the same as evaluated point by point (no NaN or inf here).
+    """
+    h = r_cap
+    for j in range(cs.shape[0]):
+        c, s = cs[j], sn[j]
+        top = -1.0
+        for k in range(m):
+            along = xs[k] * c + ys[k] * s
+            inside = (along >= 0.0) & (abs(ys[k] * c - xs[k] * s) < STRIP)
+            top = max(top, along if inside else -1.0)
+        h = min(h, top if top >= 0.0 else r_cap)
+    return h
+
+
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _nu_kernel(pos, targets, verts, order, az_sorted, el_sorted, d_min, frame, hit, t_az, t_el, wavelength, out):
+def _nu_kernel(pos, targets, rel, az_sorted, el_sorted, d_min, frame, hit, t_az, t_el, wavelength, out, n_chunks):
     n_dir = N_DIRECTIONS
     cs = np.empty(n_dir)
     sn = np.empty(n_dir)
@@ -119,55 +141,57 @@ def _nu_kernel(pos, targets, verts, order, az_sorted, el_sorted, d_min, frame, h
         sn[j] = np.sin(2 * np.pi * j / n_dir)
     r_cap = NU_MAX / np.sqrt(2.0)
     r_clear = -NU_CLEAR / np.sqrt(2.0)
-    for i in numba.prange(frame.shape[0]):
-        b = frame[i]
-        ux, uy, uz = targets[i, 0] - pos[0], targets[i, 1] - pos[1], targets[i, 2] - pos[2]
-        length = np.sqrt(ux * ux + uy * uy + uz * uz)
-        ux, uy, uz = ux / length, uy / length, uz / length
-        # e1 horizontal across the segment, e2 = u x e1 (up-ish); z for a vertical segment
-        hn = np.sqrt(ux * ux + uy * uy)
-        if hn > 1e-9:
-            e1x, e1y, e1z = -uy / hn, ux / hn, 0.0
-        else:
-            e1x, e1y, e1z = 1.0, 0.0, 0.0
-        e2x, e2y, e2z = uy * e1z - uz * e1y, uz * e1x - ux * e1z, ux * e1y - uy * e1x
-        reach = r_cap if hit[i] else r_clear
-        # angular window: a vertex at distance s along the segment matters within reach * r1(s) of it, and
-        # r1(s) / s = sqrt(lambda (L - s) / (s L)) is largest at the nearest vertex
-        s0 = min(max(d_min[b], 1e-3), length)
-        half_el = 1.1 * reach * np.sqrt(wavelength * max(length - s0, 0.0) / (s0 * length)) + 1e-6  # 10 %: sin < angle
-        half = min(half_el / max(hn, 1e-3), np.pi)  # in azimuth: wider for steep segments
-        lo = np.searchsorted(az_sorted[b], t_az[i] - half)
-        hi = np.searchsorted(az_sorted[b], t_az[i] + half)
-        best = 1e300  # clear: smallest normalised distance^2
-        sup = np.full(n_dir, -1.0)  # blocked: reach of the body along each direction (-1: no vertex in the window)
-        for q in range(lo, hi):
-            if abs(el_sorted[b, q] - t_el[i]) > half_el:
-                continue
-            v = order[b, q]
-            dx, dy, dz = verts[b, v, 0] - pos[0], verts[b, v, 1] - pos[1], verts[b, v, 2] - pos[2]
-            s = dx * ux + dy * uy + dz * uz
-            if s <= 0.0 or s >= length:
-                continue
-            r1 = np.sqrt(wavelength * s * (length - s) / length)
-            wx, wy, wz = dx - s * ux, dy - s * uy, dz - s * uz
-            x = (wx * e1x + wy * e1y + wz * e1z) / r1
-            y = (wx * e2x + wy * e2y + wz * e2z) / r1
-            if hit[i]:
-                for j in range(n_dir):
-                    along = x * cs[j] + y * sn[j]
-                    if along >= 0.0 and along > sup[j] and abs(y * cs[j] - x * sn[j]) < STRIP:
-                        sup[j] = along
+    n, n_v = frame.shape[0], rel.shape[1]
+    for chunk in numba.prange(n_chunks):
+        xs = np.empty(n_v)  # a blocked segment's outline vertices in its plane [r1], for `_outline`
+        ys = np.empty(n_v)
+        for i in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
+            b = frame[i]
+            ux, uy, uz = targets[i, 0] - pos[0], targets[i, 1] - pos[1], targets[i, 2] - pos[2]
+            length = np.sqrt(ux * ux + uy * uy + uz * uz)
+            ux, uy, uz = ux / length, uy / length, uz / length
+            # e1 horizontal across the segment, e2 = u x e1 (up-ish); z for a vertical segment
+            hn = np.sqrt(ux * ux + uy * uy)
+            if hn > 1e-9:
+                e1x, e1y, e1z = -uy / hn, ux / hn, 0.0
             else:
-                best = min(best, x * x + y * y)
-        if hit[i]:
-            # no outline vertex along a direction within the window: the body reaches past the cap there
-            h = r_cap
-            for j in range(n_dir):
-                h = min(h, sup[j] if sup[j] >= 0.0 else r_cap)
-            out[i] = min(np.sqrt(2.0) * h, NU_MAX)
-        else:
-            out[i] = -np.sqrt(2.0) * np.sqrt(best) if best < 1e300 else NU_CLEAR - 1.0
+                e1x, e1y, e1z = 1.0, 0.0, 0.0
+            e2x, e2y, e2z = uy * e1z - uz * e1y, uz * e1x - ux * e1z, ux * e1y - uy * e1x
+            blocked = hit[i]
+            reach = r_cap if blocked else r_clear
+            # angular window: a vertex at distance s along the segment matters within reach * r1(s) of it, and
+            # r1(s) / s = sqrt(lambda (L - s) / (s L)) is largest at the nearest vertex
+            s0 = min(max(d_min[b], 1e-3), length)
+            # 10 %: sin < angle
+            half_el = 1.1 * reach * np.sqrt(wavelength * max(length - s0, 0.0) / (s0 * length)) + 1e-6
+            half = min(half_el / max(hn, 1e-3), np.pi)  # in azimuth: wider for steep segments
+            lo = np.searchsorted(az_sorted[b], t_az[i] - half)
+            hi = np.searchsorted(az_sorted[b], t_az[i] + half)
+            best = 1e300  # clear: smallest normalised distance^2
+            m = 0
+            for q in range(lo, hi):
+                if abs(el_sorted[b, q] - t_el[i]) > half_el:
+                    continue
+                dx, dy, dz = rel[b, q, 0], rel[b, q, 1], rel[b, q, 2]
+                s = dx * ux + dy * uy + dz * uz
+                if s <= 0.0 or s >= length:
+                    continue
+                r1 = np.sqrt(wavelength * s * (length - s) / length)
+                wx, wy, wz = dx - s * ux, dy - s * uy, dz - s * uz
+                x = (wx * e1x + wy * e1y + wz * e1z) / r1
+                y = (wx * e2x + wy * e2y + wz * e2z) / r1
+                if blocked:
+                    xs[m] = x
+                    ys[m] = y
+                    m += 1
+                else:
+                    best = min(best, x * x + y * y)
+            if blocked:
+                # the reach of the body along each direction (no outline vertex along one within the window:
+                # the body reaches past the cap there)
+                out[i] = min(np.sqrt(2.0) * _outline(xs, ys, m, cs, sn, r_cap), NU_MAX)
+            else:
+                out[i] = -np.sqrt(2.0) * np.sqrt(best) if best < 1e300 else NU_CLEAR - 1.0
 
 
 __all__ = ["itu_j_db", "knife_edge_amplitude", "fresnel_nu", "shadow_nu", "segment_amplitudes", "box_margin_m",

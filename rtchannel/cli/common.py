@@ -233,9 +233,9 @@ def build_motion(args):
 
     heading = getattr(args, "heading", None)
     trim = getattr(args, "trim", None)
-    from rtchannel.motion.compose import place_take
-
     if args.motion_file is not None:
+        from rtchannel.motion.compose import place_take  # here: a procedural activity never needs scipy.spatial
+
         if getattr(args, "fall_direction", None) is not None:
             raise UserError("--fall-direction applies to a procedural fall, not to --motion-file")
         given = [f"--{n}" for n in ("speed", "duration", "distance") if getattr(args, n, None) is not None]

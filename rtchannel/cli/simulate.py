@@ -80,6 +80,19 @@ def backend_options(args) -> dict:
 
 
 def cmd_simulate(args) -> int:
+    from processing.plots.figure_worker import FigureWorker
+
+    options = backend_options(args)
+    budget = accuracy_kwargs(args)
+    radar, angle = load_radar(args)
+    check_output(args.out, "dir")
+    # the figures' process starts here, before the simulation's imports: it imports matplotlib on the other core
+    # while this one simulates (processing.plots.figure_worker)
+    with FigureWorker(enabled=not args.no_plots) as figures:
+        return _simulate(args, options, budget, radar, angle, figures)
+
+
+def _simulate(args, options: dict, budget: dict, radar, angle: float, figures) -> int:
     from tqdm import tqdm
 
     from rtchannel.pipeline import simulate
@@ -87,10 +100,6 @@ def cmd_simulate(args) -> int:
 
     from processing.dsp.config import check_recording
 
-    options = backend_options(args)
-    budget = accuracy_kwargs(args)
-    radar, angle = load_radar(args)
-    check_output(args.out, "dir")
     motion = build_motion(args)
     check_recording(motion.duration, radar.waveform, radar.dsp, len(radar.links), args.keep_iq)
     scene = Scene(args.scene) if args.scene is not None else None
@@ -109,6 +118,7 @@ def cmd_simulate(args) -> int:
               f"{acc['calibrated_s_per_sim_s']:.3g} s per simulated s; {acc['calibration']})")
     print(f"wrote {out}")
     if not args.no_plots:
-        for png in result.save_figures(args.out, title=f"{args.activity} ({args.backend}, {angle:g} deg)"):
+        title = f"{args.activity} ({args.backend}, {angle:g} deg)"
+        for png in figures.save_figures(result.signatures, args.out, title=title):
             print(f"wrote {png}")
     return 0

@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from processing.io.dataset_store import ACTIVITIES, signature_arrays
+from processing.io.dataset_store import ACTIVITIES, SIGNATURE_ARRAYS, signature_arrays
 from processing.synthesis.augment import add_clutter, add_noise, signal_power
 from rtchannel.dataset.plan import WorkItem
 from rtchannel.radar import RadarConfig
@@ -28,6 +28,7 @@ from processing.errors import InputError
 _CACHE_SIZE = 8
 _MOTIONS: OrderedDict[str, Motion] = OrderedDict()
 _FILES: OrderedDict[str, Motion] = OrderedDict()
+_SCENES: OrderedDict[str, object] = OrderedDict()
 
 
 def _cached(cache: OrderedDict, key: str, make):
@@ -85,6 +86,27 @@ def build_motion(m: dict) -> Motion:
     return _cached(_MOTIONS, json.dumps(m, sort_keys=True, default=str), make)
 
 
+def _without_range_doppler(radar: RadarConfig) -> RadarConfig:
+    """`radar` with its DSP's range-Doppler maps off: a dataset stores the signatures of
+    `processing.io.dataset_store.SIGNATURE_ARRAYS`, which do not include them (computing them took ~15 % of the
+    Glasgow DSP); the signatures it stores are the same with or without."""
+    if "range_doppler" in SIGNATURE_ARRAYS or not radar.dsp.range_doppler:
+        return radar
+    return radar.model_copy(update={"dsp": radar.dsp.model_copy(update={"range_doppler": False})})
+
+
+def item_scene(item: WorkItem, motion: Motion):
+    """The mesh backends' scene of an item: its drawn room (None: the default room) plus the chair its plan
+    asks for under `motion` (`Scene.for_motion`). Cached per process by motion, room and chair: the items of
+    one motion (its placements) share them, and the chair's fit skins the whole motion."""
+    def make():
+        from rtchannel.scene.spec import Scene
+
+        scene = Scene(item.room) if item.room is not None else None
+        return Scene.for_motion(motion, scene, item.chair) if item.chair != "none" else scene
+    return _cached(_SCENES, json.dumps([item.motion, item.room, item.chair], sort_keys=True, default=str), make)
+
+
 def item_gains(gain_set: dict, rng: np.random.Generator) -> np.ndarray:
     """Amplitude gains [21] of the seed's scatterers for a gain set: seed gains x scale x log-normal factor."""
     g = seed_scatterers(avatar_rig()).gains.astype(float).copy()
@@ -104,7 +126,7 @@ class _Job:
         ss = np.random.SeedSequence(item.seed)
         gain_ss, self.clutter_ss, noise_ss = ss.spawn(3)
         self.motion = build_motion(item.motion)
-        self.radar = RadarConfig.model_validate(item.radar).rotated(item.angle_deg)
+        self.radar = _without_range_doppler(RadarConfig.model_validate(item.radar).rotated(item.angle_deg))
         self.gains = item_gains(item.gain_set, np.random.default_rng(gain_ss))
         seed_g = seed_scatterers(avatar_rig()).gains
         self.overall = float(np.sqrt(np.sum(self.gains ** 2) / np.sum(seed_g ** 2)))
@@ -113,17 +135,13 @@ class _Job:
             self.options.update(accuracy=item.accuracy, calibration=item.calibration)
         if item.backend == "points":
             self.options["gains"] = self.gains
-        else:  # mesh backends: the drawn room and furniture (the points backend is free space)
-            from rtchannel.scene.spec import Scene
-
-            if item.room is not None:
-                self.options["scene"] = Scene(item.room)
-            if item.chair != "none":
-                self.options["scene"] = Scene.for_motion(self.motion, self.options.get("scene"), item.chair)
+        elif item.room is not None or item.chair != "none":  # mesh backends: the drawn room and furniture
+            self.options["scene"] = item_scene(item, self.motion)  # (the points backend is free space)
         self.signal_layer = item.snr_db is not None or item.clutter is not None
         self.mesh_scale = item.backend != "points" and self.overall != 1.0  # mesh backends: the set's overall factor
-        self.clutter_info = {}
+        self.clutter_info: dict[str, dict] = {}
         self.noise_streams = dict(zip((link.name for link in self.radar.links), noise_ss.spawn(len(self.radar.links))))
+        self.setup_s = time.perf_counter() - self.t0  # motion (cached per motion), radar, gains, scene
 
     def transform(self, name, iq):
         """Signal layer on the raw IQ before DSP: (mesh backends: the gain set's overall factor) -> clutter ->
@@ -144,10 +162,12 @@ class _Job:
     def iq_transform(self):
         return self.transform if self.signal_layer else None
 
-    def finish(self, result, caught, shared_with: int = 1) -> dict:
-        """{"entry": index entry, "links": {link: arrays}} of the simulation `result`."""
+    def finish(self, result, caught, shared_with: int = 1, setup_s: float | None = None) -> dict:
+        """{"entry": index entry, "links": {link: arrays}} of the simulation `result` (`setup_s`: this item's
+        share of its group's set-up time [s], default its own)."""
         item, overall = self.item, self.overall
         links = {}
+        image_s = 0.0
         for name, lr in result.links.items():
             sig, iq = lr.signature, lr.iq
             if self.mesh_scale and not self.signal_layer:
@@ -158,7 +178,9 @@ class _Job:
                 from processing.realdata.spectrogram_image import glasgow_layout
                 from processing.realdata.spectrogram_image_writer import through_image
 
+                t = time.perf_counter()
                 sig = through_image(sig, glasgow_layout(float(item.motion["clip_s"])))
+                image_s += time.perf_counter() - t
             arrays = signature_arrays(sig)
             if item.keep_iq:
                 arrays["iq"] = np.asarray(iq, dtype=np.complex64)
@@ -174,8 +196,17 @@ class _Job:
                  "gain_set": item.gain_set["name"], "snr_db": item.snr_db, "seed": item.seed,
                  "n_time": int(next(iter(links.values()))["p_vt"].shape[1]) if links else 0,
                  "params": params, "seconds": round((time.perf_counter() - self.t0) / shared_with, 4),
-                 "cpu_seconds": round((time.process_time() - self.c0) / shared_with, 4)}
+                 "cpu_seconds": round((time.process_time() - self.c0) / shared_with, 4),
+                 "stage_seconds": self.stages(result.timing, image_s, setup_s)}
         return {"entry": entry, "links": links}
+
+    def stages(self, timing: dict, image_s: float, setup_s: float | None = None) -> dict[str, float]:
+        """Wall time [s] of this item by stage: "setup" (motion, radar, gains, scene), "backend" (its share of a
+        shared run), "synthesis" (with the signal layer), "dsp" and "image" (the Glasgow display chain); the
+        shard's HDF5 write comes after the entry is made and is not included."""
+        stages = {"setup": self.setup_s if setup_s is None else setup_s, "backend": timing.get("backend", 0.0),
+                  "synthesis": timing.get("synthesis", 0.0), "dsp": timing.get("dsp", 0.0), "image": image_s}
+        return {k: round(float(v), 4) for k, v in stages.items()}
 
 
 def run_item(item: WorkItem) -> dict:
@@ -214,4 +245,5 @@ def run_shared(items: list[WorkItem]) -> list[dict]:
         results = simulate_radars(jobs[0].motion, [j.radar for j in jobs], first.backend, keep_iq=first.keep_iq,
                                   iq_transforms=[j.iq_transform for j in jobs],
                                   noise_seeds=[it.seed for it in items], **jobs[0].options)
-    return [j.finish(r, caught, len(jobs)) for j, r in zip(jobs, results)]
+    setup_s = sum(j.setup_s for j in jobs) / len(jobs)  # the first job builds the shared motion and scene
+    return [j.finish(r, caught, len(jobs), setup_s) for j, r in zip(jobs, results)]

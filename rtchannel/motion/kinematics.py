@@ -17,9 +17,8 @@ offset unchanged and the remaining hip/knee angles follow from the law of cosine
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
-from scipy.special import logsumexp
 
+from processing.cubic import hermite_spline, logsumexp, pchip_slopes
 from rtchannel.motion.pose import Rig, forward_kinematics
 
 DEG = np.pi / 180.0
@@ -82,10 +81,9 @@ def keyframes(u, knots, values) -> np.ndarray:
     end slopes are zero so it joins the constant hold without a velocity jump.
     """
     knots, values = np.asarray(knots, float), np.asarray(values, float)
-    slopes = PchipInterpolator(knots, values).derivative()(knots)
-    slopes[[0, -1]] = 0.0
+    slopes = pchip_slopes(knots, values)  # end slopes 0
     u = np.clip(np.asarray(u, float), knots[0], knots[-1])
-    return CubicHermiteSpline(knots, values, slopes)(u)
+    return hermite_spline(knots, values, slopes, u)
 
 
 def hermite(s, p0, v0, p1, v1, duration: float) -> np.ndarray:
@@ -302,9 +300,8 @@ def foot_track(t, stances, heel, toe, heel_rock: float, heel_rise: float, lift: 
         ank[m, 0] = hermite(s, p0[0], v0[0], end[0], v1[0], dur)
         ank[m, 1] = y + (y1 - y) * minjerk(s)
         # Heel highest early in swing, foot skimming the floor by mid-swing (Winter 1992, toe clearance).
-        ank[m, 2] = CubicHermiteSpline([0.0, 0.25, 0.6, 1.0], [p0[1], p0[1] + lift, h + clearance, end[1]],
-                                       [v0[1] * dur, 0.0, 0.0, v1[1] * dur])(s)
+        ank[m, 2] = hermite_spline([0.0, 0.25, 0.6, 1.0], [p0[1], p0[1] + lift, h + clearance, end[1]],
+                                   [v0[1] * dur, 0.0, 0.0, v1[1] * dur], s)
         # The ankle dorsiflexes back to a level foot by mid-swing, then the toes come up for the strike.
-        pitch[m] = CubicHermiteSpline([0.0, 0.45, 1.0], [p_off, 0.0, -p1],
-                                      [rate * dur, -(p1 + p_off), rate1 * dur])(s)
+        pitch[m] = hermite_spline([0.0, 0.45, 1.0], [p_off, 0.0, -p1], [rate * dur, -(p1 + p_off), rate1 * dur], s)
     return ank, pitch

@@ -270,12 +270,22 @@ class Motion:
             yaw_rad: rotation about +z [rad], counter-clockwise seen from above.
             offset: shift (x, y, z) [m] applied after the rotation.
         """
-        from scipy.spatial.transform import Rotation
-
-        rz = Rotation.from_euler("z", yaw_rad).as_matrix()
+        rz = _yaw_matrix(yaw_rad)
         pos = self.positions @ rz.T + np.asarray(offset, dtype=float)
         rot = np.einsum("ab,fjbc->fjac", rz, self.rotations)
         return replace(self, positions=pos, rotations=rot)
+
+
+def _yaw_matrix(yaw_rad: float) -> np.ndarray:
+    """The rotation matrix [3, 3] about +z by `yaw_rad` [rad], from the unit quaternion (0, 0, sin, cos) of
+    half the angle, in the operations of `scipy.spatial.transform.Rotation.from_euler("z", yaw).as_matrix()`
+    (bit-identical, tests/test_cubic.py), without importing scipy.spatial."""
+    z, w = np.sin(0.5 * yaw_rad), np.cos(0.5 * yaw_rad)
+    z2, w2, zw = z * z, w * w, z * w
+    # x = y = 0: the quaternion formula's other terms vanish exactly
+    return np.array([[0.0 - 0.0 - z2 + w2, 2 * (0.0 - zw), 2 * (0.0 + 0.0)],
+                     [2 * (0.0 + zw), -0.0 + 0.0 - z2 + w2, 2 * (0.0 - 0.0)],
+                     [2 * (0.0 - 0.0), 2 * (0.0 + 0.0), -0.0 - 0.0 + z2 + w2]])
 
 
 def forward_kinematics(rig: Rig, local_rotations: np.ndarray, root_positions: np.ndarray) -> tuple[
