@@ -72,7 +72,7 @@ def _specs(data) -> list[str]:
 
 
 def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None = None,
-                 progress: bool = False) -> Dataset:
+                 progress: bool = False, cache: bool = True) -> Dataset:
     """Load and preprocess the items of one or several dataset specs into one `Dataset`.
 
     Args:
@@ -80,6 +80,8 @@ def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None 
         links: the radar links to load (one network branch each).
         preprocess: the preprocessing (default `PreprocessConfig()`).
         progress: show a progress bar.
+        cache: read the preprocessed inputs from the on-disk cache when they are there, and write them there
+            after preprocessing (`processing.classifier.array_cache`; the same arrays either way).
     """
     from processing.io.dataset_query import open_spec
 
@@ -89,7 +91,8 @@ def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None 
     for spec in _specs(data):
         reader, idx = open_spec(spec)
         try:
-            parts.append(dataset_arrays(reader, idx, list(links), pre, progress=progress))
+            parts.append(_cached_arrays(reader, idx, list(links), pre, progress) if cache else
+                         dataset_arrays(reader, idx, list(links), pre, progress=progress))
         except (KeyError, ValueError) as e:
             raise InputError(f"{spec}: {str(e).strip(chr(39) + chr(34))}") from None
         names += [reader.entries[i]["item_id"] for i in idx]
@@ -99,6 +102,23 @@ def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None 
     groups = [g for p in parts for g in p[2]]
     return Dataset(x=x, y=y, groups=groups, names=names, entries=entries, spec=" + ".join(_specs(data)),
                    seconds=time.perf_counter() - t0)
+
+
+def _cached_arrays(reader, idx, links, pre: PreprocessConfig, progress: bool):
+    """`dataset_arrays` through the on-disk cache of preprocessed inputs (labels and groups from the index)."""
+    from processing.classifier import array_cache
+
+    chosen = [reader.entries[i] for i in idx]
+    if any(link not in e["links"] for e in chosen for link in links):  # dataset_arrays names the missing link
+        return dataset_arrays(reader, idx, links, pre, progress=progress)
+    key = array_cache.cache_key(chosen, links, pre)
+    x = array_cache.load_inputs(key, (len(chosen), len(links), pre.n_velocity, pre.n_time))
+    if x is None:
+        x, y, groups = dataset_arrays(reader, idx, links, pre, progress=progress)
+        array_cache.store_inputs(key, x)
+        return x, y, groups
+    y = np.array([int(e["label"]) for e in chosen], np.int64)
+    return x, y, [str(e.get("group", e.get("item_id", i))) for i, e in zip(idx, chosen)]
 
 
 @dataclass

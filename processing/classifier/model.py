@@ -2,7 +2,7 @@
 fused features, an MLP head.
 
 FEN: four blocks of [conv (64, 72, 80, 96 kernels of k x k, k = 3 or 4) -> (BatchNorm) -> ReLU ->
-2x2 max pool -> 10 % dropout], then flatten. BatchNorm is not in the seed's description; it is on by
+2x2 max pool -> 10 % dropout], then flatten (the pool runs before the ReLU, which gives the same numbers). BatchNorm is not in the seed's description; it is on by
 default because without it the network sat at chance for many epochs on small datasets (measured), and
 `batch_norm=False` gives the literal seed stack. The seed's flatten size, 18816 = 96 x 14 x 14, matches 3x3 'valid'
 convolutions on a 256 x 256 image; the default here is the same 3x3 'valid' stack on a 64 x 64 image
@@ -101,6 +101,24 @@ class TimePool(nn.Module):
         return self.mode
 
 
+class Dropout(nn.Dropout):
+    """`nn.Dropout` whose mask is drawn in the tensor's logical (N, C, H, W) order whatever its memory layout.
+
+    torch fills a channels-last tensor's mask in memory order, so the same seed would drop other elements
+    than for the contiguous layout; drawing on a contiguous copy keeps one random stream for both layouts
+    (training in channels-last then differs from contiguous by float rounding only).
+    """
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if not self.training or self.p == 0 or x.is_contiguous():
+            return super().forward(x)
+        # what F.dropout does on CPU (Bernoulli noise divided by the keep probability, times x), with the noise
+        # drawn contiguous and only then laid out like x
+        keep = 1.0 - self.p
+        noise = torch.empty(x.shape, dtype=x.dtype).bernoulli_(keep)
+        return x * noise.contiguous(memory_format=torch.channels_last).div_(keep)
+
+
 class FEN(nn.Module):
     """Feature-extraction network of one radar: [B, 1, V, T] -> [B, features]."""
 
@@ -110,7 +128,10 @@ class FEN(nn.Module):
         for c in cfg.channels:
             layers += [nn.Conv2d(c_in, c, cfg.kernel_size, padding=cfg.padding)]
             layers += [nn.BatchNorm2d(c)] if cfg.batch_norm else []
-            layers += [nn.ReLU(inplace=True), nn.MaxPool2d(2), nn.Dropout(cfg.fen_dropout)]
+            # the seed's conv -> ReLU -> pool, with the pool first: max and ReLU commute exactly (ReLU is
+            # monotone; same outputs and gradients, bit for bit), and the ReLU then runs on a quarter of the
+            # values. Parameter-free, so the state-dict keys are unchanged.
+            layers += [nn.MaxPool2d(2), nn.ReLU(inplace=True), Dropout(cfg.fen_dropout)]
             c_in = c
         if cfg.time_pool != "none":  # parameter-free, so the state-dict keys are those of 'none'
             layers += [TimePool(cfg.time_pool)]

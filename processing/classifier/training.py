@@ -27,6 +27,7 @@ from typing import Literal
 
 import numpy as np
 import torch
+import torch.utils.deterministic
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
@@ -69,6 +70,12 @@ class TrainConfig(BaseModel):
                                      "validation loss over its minimum that an averaged epoch may have")
     seed: int = Field(0, ge=0, le=2**32 - 1, description="random seed (scikit-learn's split takes 32 bits)")
     threads: int | None = Field(None, ge=1, le=256, description="torch CPU threads; None: DEFAULT_THREADS (1)")
+    # channels-last runs the convolutions, pooling and BatchNorm of this network 1.5-2x faster on CPU (measured,
+    # benchmarks/bench_train_speed.py); the weights then differ from 'contiguous' by float rounding only (the
+    # dropout masks are drawn in the same order, `model.Dropout`), which Adam's first steps amplify
+    memory_format: Literal["channels_last", "contiguous"] = Field(
+        "channels_last", description="memory layout of the activations while training ('contiguous': the layout "
+        "of trainings before it existed, which reproduces their weights)")
     # absent from checkpoints written before it existed: those trained without augmentation, the default
     augment: AugmentConfig = Field(AugmentConfig(), description="random transforms of training batches (default off)")
 
@@ -91,6 +98,10 @@ def setup_torch(seed: int, threads: int | None = None) -> None:
     torch.manual_seed(seed)
     np.random.seed(seed % 2**32)
     torch.use_deterministic_algorithms(True)
+    # deterministic mode also fills every new tensor's memory with NaN (a debugging aid against reading
+    # uninitialised memory); no kernel here reads it, so the weights are the same bit for bit without it, and
+    # the fills took a third of an epoch's CPU time (measured, torch.profiler: aten::fill_)
+    torch.utils.deterministic.fill_uninitialized_memory = False
 
 
 def dataset_arrays(reader, indices, links, pre: PreprocessConfig, progress: bool = False):
@@ -125,7 +136,7 @@ class TrainResult:
 def _evaluate(model, x, y, batch_size, loss_fn):
     model.eval()
     total, correct, n = 0.0, 0, 0
-    with torch.no_grad():
+    with torch.inference_mode():
         for s in range(0, x.shape[0], batch_size):
             xb, yb = x[s:s + batch_size], y[s:s + batch_size]
             out = model(xb)
@@ -185,11 +196,13 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
             tr, va = split_indices(y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)
     except ValueError as e:  # too few samples or groups for the requested split
         raise TrainingError(f"cannot split the data: {one_line(e)}") from None
+    fmt = torch.channels_last if cfg.memory_format == "channels_last" else torch.contiguous_format
     xt, yt = torch.from_numpy(np.ascontiguousarray(x[tr])), torch.from_numpy(np.asarray(y)[tr])
-    xv, yv = torch.from_numpy(np.ascontiguousarray(x[va])), torch.from_numpy(np.asarray(y)[va])
+    xv, yv = torch.from_numpy(np.ascontiguousarray(x[va])).contiguous(memory_format=fmt), torch.from_numpy(np.asarray(y)[va])
     model = build_model(model_cfg)
     if init_state is not None:
         model.load_state_dict(init_state)
+    model.to(memory_format=fmt)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     loss_fn = nn.CrossEntropyLoss()
     gen = torch.Generator().manual_seed(cfg.seed)
@@ -206,7 +219,7 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
             b = order[s:s + cfg.batch_size]
             opt.zero_grad()
             xb = augment_batch(xt[b], cfg.augment, gen, preprocess) if cfg.augment.enabled else xt[b]
-            out = model(xb)
+            out = model(xb.contiguous(memory_format=fmt))
             loss = loss_fn(out, yt[b])
             if not torch.isfinite(loss.detach()):
                 raise TrainingError(f"training diverged: the loss became {float(loss.detach())} at epoch {epoch} "
@@ -239,14 +252,14 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     if cfg.average == "window" and xv.shape[0]:
         lo, hi = averaging_window(hist["val_loss"], best_epoch, cfg.average_tolerance)
         model.load_state_dict(average_states(states[lo - 1:hi]))
-        recompute_batch_norm(model, xt, cfg.batch_size)
+        recompute_batch_norm(model, xt.contiguous(memory_format=fmt), cfg.batch_size)
         vl, vacc = _evaluate(model, xv, yv, 256, loss_fn)
         extra["averaged"] = {"epochs": [lo, hi], "val_loss": vl, "val_acc": vacc,
                              "best_val_loss": float(best), "best_val_acc": float(hist["val_acc"][best_epoch - 1])}
         if log:
             log(f"weights averaged over epochs {lo}-{hi}: val loss {vl:.4f} (best single epoch {best:.4f}), "
                 f"val acc {vacc:.3f}")
-    model.eval()
+    model.to(memory_format=torch.contiguous_format).eval()  # checkpoints and callers get the usual layout
     return TrainResult(model=model, history=hist, train_idx=tr, val_idx=va, best_epoch=best_epoch,
                        seconds=time.perf_counter() - t_start, extra=extra)
 
