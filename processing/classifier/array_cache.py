@@ -38,25 +38,30 @@ def cache_dir() -> Path:
     return Path(xdg) / "rtchannel" / "arrays"
 
 
-def _code_digest() -> str:
-    """sha256 of the source files whose code makes X from a dataset's stored arrays."""
+CODE = ("processing.classifier.preprocess", "processing.io.dataset_reader")  # stored arrays -> X
+
+
+def _code_digest(modules) -> str:
+    """sha256 of the source files of `modules` (dotted names)."""
     import importlib
 
     h = hashlib.sha256()
-    for name in ("processing.classifier.preprocess", "processing.io.dataset_reader"):
+    for name in modules:
         h.update(Path(importlib.import_module(name).__file__).read_bytes())
     return h.hexdigest()
 
 
-def cache_key(entries: list[dict], links, pre) -> str:
-    """The key of the inputs of `entries` (index entries, in order) on `links` under `pre` (a PreprocessConfig)."""
+def cache_key(entries: list[dict], links, pre, extra_code=()) -> str:
+    """The key of the inputs of `entries` (index entries, in order: ``item_id`` and ``sha256`` {link: checksum})
+    on `links` under `pre` (a PreprocessConfig); `extra_code`: further modules whose source makes the inputs
+    (e.g. the image reader for real images)."""
     links = list(links)
     h = hashlib.sha256()
     h.update(json.dumps({"version": VERSION, "links": links, "preprocess": pre.model_dump(mode="json"),
-                         "code": _code_digest()}, sort_keys=True).encode())
+                         "code": _code_digest((*CODE, *extra_code))}, sort_keys=True).encode())
     for e in entries:
         sums = e.get("sha256") or {}
-        h.update(f"\n{e['item_id']}|" .encode() + "|".join(str(sums.get(link)) for link in links).encode())
+        h.update(f"\n{e['item_id']}|".encode() + "|".join(str(sums.get(link)) for link in links).encode())
     return h.hexdigest()
 
 
@@ -89,4 +94,4 @@ def store_inputs(key: str, x: np.ndarray) -> Path | None:
     return path
 
 
-__all__ = ["VERSION", "cache_dir", "cache_key", "load_inputs", "store_inputs"]
+__all__ = ["CODE", "VERSION", "cache_dir", "cache_key", "load_inputs", "store_inputs"]

@@ -76,6 +76,11 @@ class TrainConfig(BaseModel):
     memory_format: Literal["channels_last", "contiguous"] = Field(
         "channels_last", description="memory layout of the activations while training ('contiguous': the layout "
         "of trainings before it existed, which reproduces their weights)")
+    epoch_samples: int | None = Field(None, ge=1, le=10_000_000, description="items drawn per epoch when the "
+                                      "datasets are weighted (`train`'s source_weights); None: the training set's size")
+    feature_lr_scale: float = Field(1.0, ge=0, le=1, description="learning rate of the feature-extraction networks "
+                                    "(the convolutions and their BatchNorm) relative to lr: 1 one rate for all, < 1 "
+                                    "a lower one (discriminative fine-tuning), 0 frozen (only the MLP head learns)")
     # absent from checkpoints written before it existed: those trained without augmentation, the default
     augment: AugmentConfig = Field(AugmentConfig(), description="random transforms of training batches (default off)")
 
@@ -149,7 +154,7 @@ def _evaluate(model, x, y, batch_size, loss_fn):
 def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig = TrainConfig(), groups=None,
           split: tuple[np.ndarray, np.ndarray] | None = None, progress: bool = True, log=print,
           preprocess: PreprocessConfig | None = None, deployments: dict | None = None,
-          init_state: dict | None = None) -> TrainResult:
+          init_state: dict | None = None, sources=None, source_weights=None) -> TrainResult:
     """Train on X [N, n_branches, V, T] / labels y [N] with an 80:20 stratified (grouped) split.
 
     `split` overrides the split with explicit (train, validation) indices. With ``cfg.val_split ==
@@ -161,6 +166,12 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     start from instead of the seeded random initialisation (fine-tuning). The returned model carries
     the weights of the epoch with the lowest validation loss (early stopping after `patience` epochs
     without improvement). History: per-epoch train/val loss and accuracy, and seconds per epoch.
+
+    Weighted datasets: with `source_weights` (one weight >= 0 per source) and `sources` (the source index of each
+    item [N]), every epoch draws ``cfg.epoch_samples`` (default: the training set's size) training items with
+    replacement, source k with probability weight_k / sum(weights) and uniformly within it, so a batch mixes the
+    sources in those shares whatever their sizes (mixed batches: e.g. a few real recordings beside thousands of
+    simulated ones). Without weights every epoch is one pass over the training items in a seeded order.
     """
     from tqdm import tqdm
 
@@ -203,7 +214,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     if init_state is not None:
         model.load_state_dict(init_state)
     model.to(memory_format=fmt)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    opt = _optimizer(model, cfg)
+    draw = _source_probabilities(sources, source_weights, tr) if source_weights is not None else None
     loss_fn = nn.CrossEntropyLoss()
     gen = torch.Generator().manual_seed(cfg.seed)
     hist = {k: [] for k in ("train_loss", "train_acc", "val_loss", "val_acc", "seconds")}
@@ -213,9 +225,12 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     for epoch in bar:
         t0 = time.perf_counter()
         model.train()
-        order = torch.randperm(xt.shape[0], generator=gen)
+        if draw is None:
+            order = torch.randperm(xt.shape[0], generator=gen)
+        else:
+            order = torch.multinomial(draw, cfg.epoch_samples or xt.shape[0], replacement=True, generator=gen)
         run_loss, run_ok = 0.0, 0
-        for s in range(0, xt.shape[0], cfg.batch_size):
+        for s in range(0, order.numel(), cfg.batch_size):
             b = order[s:s + cfg.batch_size]
             opt.zero_grad()
             xb = augment_batch(xt[b], cfg.augment, gen, preprocess) if cfg.augment.enabled else xt[b]
@@ -232,8 +247,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         if xv.shape[0] and not np.isfinite(vl):
             raise TrainingError(f"training diverged: the validation loss became {vl} at epoch {epoch} "
                                 f"(learning rate {cfg.lr:g}); lower --lr. Nothing was saved")
-        hist["train_loss"].append(run_loss / xt.shape[0])
-        hist["train_acc"].append(run_ok / xt.shape[0])
+        hist["train_loss"].append(run_loss / order.numel())
+        hist["train_acc"].append(run_ok / order.numel())
         hist["val_loss"].append(vl)
         hist["val_acc"].append(vacc)
         hist["seconds"].append(time.perf_counter() - t0)
@@ -262,6 +277,35 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     model.to(memory_format=torch.contiguous_format).eval()  # checkpoints and callers get the usual layout
     return TrainResult(model=model, history=hist, train_idx=tr, val_idx=va, best_epoch=best_epoch,
                        seconds=time.perf_counter() - t_start, extra=extra)
+
+
+def _optimizer(model: nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
+    """Adam over the network, the feature networks at ``cfg.feature_lr_scale`` times the rate (frozen at 0)."""
+    if cfg.feature_lr_scale == 1.0:
+        return torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    features = list(model.fens.parameters())
+    if cfg.feature_lr_scale == 0.0:  # frozen: no gradients through the convolutions at all (cheaper too)
+        for q in features:
+            q.requires_grad_(False)
+        return torch.optim.Adam(model.mlp.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    return torch.optim.Adam([{"params": features, "lr": cfg.lr * cfg.feature_lr_scale},
+                             {"params": list(model.mlp.parameters())}], lr=cfg.lr, weight_decay=cfg.weight_decay)
+
+
+def _source_probabilities(sources, weights, train_idx) -> torch.Tensor:
+    """Drawing probability [N_train] of each training item: its source's weight shared equally by the source's
+    training items (sources without training items drop out, the others' shares are renormalised)."""
+    src = np.asarray(sources, dtype=np.int64)[train_idx] if sources is not None else None
+    w = np.asarray(weights, dtype=np.float64)
+    if src is None or w.ndim != 1 or src.size == 0 or src.min() < 0 or src.max() >= w.size:
+        raise TrainingError(f"weighted training needs a source index in 0..{w.size - 1} for every item")
+    if not (np.isfinite(w).all() and (w >= 0).all()):
+        raise TrainingError(f"dataset weights must be finite and >= 0, got {w.tolist()}")
+    counts = np.bincount(src, minlength=w.size)
+    per_item = np.where(counts[src] > 0, w[src] / np.maximum(counts[src], 1), 0.0)
+    if per_item.sum() <= 0:
+        raise TrainingError("every training item has weight 0")
+    return torch.from_numpy(per_item / per_item.sum())
 
 
 def averaging_window(val_loss: list[float], best_epoch: int, tolerance: float) -> tuple[int, int]:
