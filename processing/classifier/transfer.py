@@ -39,6 +39,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from processing.classifier.augment import PRESETS, AugmentConfig
+from processing.classifier.model import ModelConfig
 from processing.classifier.preprocess import PreprocessConfig
 from processing.classifier.training import TrainConfig
 from processing.errors import InputError
@@ -79,6 +80,8 @@ class TransferConfig(BaseModel):
     preprocess: PreprocessConfig = Field(PreprocessConfig(v_range_mps=6.0, time_mode="window", intensity="power"),
                                          description="inputs (the README's single-radar models)")
     link: str = Field("radar1", description="the simulated link the real images stand for")
+    model: ModelConfig | None = Field(None, description="the network (None: the seed's DCNN, one branch, at the "
+                                      "preprocessing's size)")
 
     @field_validator("shots")
     @classmethod
@@ -207,8 +210,10 @@ def run_task(task: Task, init_state: dict | None = None, data: dict | None = Non
     res = train(x, y, mcfg, tcfg, split=(np.arange(y.size), np.zeros(0, np.int64)), progress=False, log=None,
                 preprocess=pre, init_state=state, sources=sources, source_weights=weights)
     row = _test_row(res.model, real, test, classification_report)
+    # how far the fixed number of steps fitted the training images (no test image involved)
     row.update(key=task.key, arm=task.arm, shots=task.shots, fold=task.fold, seed=task.seed, n_real=int(shots.size),
-               shots_per_class=shots.size / mcfg.n_classes, seconds=time.perf_counter() - t0)
+               shots_per_class=shots.size / mcfg.n_classes, train_loss=float(res.history["train_loss"][-1]),
+               train_acc=float(res.history["train_acc"][-1]), seconds=time.perf_counter() - t0)
     return row
 
 

@@ -216,8 +216,7 @@ def train_spec(spec, args, out: Path, log=print):
     links, pre, mcfg, tcfg = _configs(args)
     init = getattr(args, "init", None)
     if init is not None:
-        init = _load_model(init)
-        _check_init_options(args, init, links, pre, mcfg)
+        _check_init_options(args, _load_model(init), links, pre, mcfg)
         links = pre = mcfg = None  # the checkpoint's
     specs = spec if isinstance(spec, (list, tuple)) else [spec]
     training = train_classifier(specs if len(specs) > 1 else specs[0], links=links, preprocess=pre, model=mcfg,
@@ -319,8 +318,9 @@ def _evaluate_images(clf, args, out: Path) -> int:
     if seen:
         print(f"warning: {len(seen)} of the images were training data of this model (their sha256 is in the "
               "checkpoint); they are left out of the metrics")
-    if not images:
-        raise _user_error()(f"every one of the {len(seen)} images was training data of this model: nothing to test")
+    if seen and not any(im.activity in clf.classes for im in images):
+        raise _user_error()(f"every one of the {len(seen)} images of the model's classes was training data of this "
+                            "model: nothing to test")
     ev = evaluate_images(clf, images, bad)
     files = write_image_evaluation(ev, out, title, extra={"people": args.people, "seconds": time.perf_counter() - t0,
                                                           "left_out_seen_in_training": len(seen),
