@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
 ACTIVITIES := walk fall sit stand pick
 
-.PHONY: demo test env llvm bench docs wheel-check clean
+.PHONY: demo test lint env llvm bench docs wheel-check clean
 
 demo: env
 	@for a in $(ACTIVITIES); do \
@@ -19,6 +19,12 @@ demo: env
 # fixtures are made once); `-m "not slow"` for a quick run while working
 test: env
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+
+# the static-analysis gate (CI runs it before the tests): ruff over the tree, mypy on rtchannel/ and processing/;
+# rules and strictness in pyproject.toml ([tool.ruff], [tool.mypy])
+lint: env
+	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 bench: env
 	$(BIN)/python benchmarks/bench_points.py
@@ -53,4 +59,4 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) out .mypy_cache .ruff_cache

@@ -46,9 +46,10 @@ def main() -> None:
         path = Path(tmp) / "bench.dat"
         re_s = np.char.mod("%.8e", iq.real.astype(np.float64))
         im_s = np.char.mod("%+.8e", iq.imag.astype(np.float64))
-        path.write_text("24.125\n1.0\n128\n250\n" + "\n".join(np.char.add(np.char.add(re_s, im_s), "i").tolist()) + "\n")
+        rows = np.char.add(np.char.add(re_s, im_s), "i").tolist()
+        path.write_text("24.125\n1.0\n128\n250\n" + "\n".join(rows) + "\n")
         size = path.stat().st_size
-        del iq, re_s, im_s
+        del iq, re_s, im_s, rows
         out = subprocess.run([sys.executable, "-c", CHILD, str(path)], cwd=args.repo, capture_output=True, text=True,
                              check=True)
         res = json.loads(out.stdout)

@@ -35,7 +35,7 @@ def main(argv=None) -> None:
     os.environ["HOME"] = tempfile.mkdtemp(prefix="bench_sionna_")
     from rtchannel.scene.llvm import import_mitsuba
 
-    mi = import_mitsuba()
+    import_mitsuba()  # Dr.Jit's variant and libLLVM are set before drjit and sionna load
     import drjit as dr
     import sionna.rt as rt
 

@@ -124,7 +124,8 @@ def main() -> None:
             med = {k: statistics.median(x[k] for x in rs) for k in keys}
             rows.append({"tree": str(tree), "backend": b, "route": r, "repeats": len(rs),
                          "median_s": {k: round(v, 4) for k, v in med.items()},
-                         "wall_ns_per_path_chirp": None if b == "chain" else round(med["wall"] / rs[0]["path_chirps"] * 1e9, 2),
+                         "wall_ns_per_path_chirp": (None if b == "chain"
+                                                    else round(med["wall"] / rs[0]["path_chirps"] * 1e9, 2)),
                          "path_chirps": None if b == "chain" else rs[0]["path_chirps"]})
     print(json.dumps({"load_average_after": os.getloadavg(), "rows": rows}, indent=1))
 

@@ -7,8 +7,8 @@ imported, the functions below (module attributes looked up at call time, so the 
 time between them is "other" (argument parsing, radar file, output checks). Imports are timed apart: a
 top-level `import` statement (not nested in another import) that runs while a stage is active is charged to
 "import" of that stage, so lazy imports inside a stage show up as such. Time exclusive of nested stages:
-"backend" excludes "scene load", which excludes "avatar load". Interpreter start-up (before this script runs) and exit are not included: the
-caller compares its own clock with the epoch times printed here.
+"backend" excludes "scene load", which excludes "avatar load". Interpreter start-up (before this script runs) and
+exit are not included: the caller compares its own clock with the epoch times printed here.
 
 Prints, as the last line of stdout, JSON {"stages": {stage: [work s, import s]}, "total_s": s, "rc": exit status,
 "start_epoch": time.time() at start, "end_epoch": at the end}.

@@ -24,7 +24,8 @@ from rtchannel.motion.compose import back_and_forth, fit_clip
 from rtchannel.radar import Radar
 
 real = Path(sys.argv[1]) if len(sys.argv) > 1 else fetch("realdata/glasgow848/1Dataset/1P36A01R01.png")
-out = Path(sys.argv[2]) if len(sys.argv) > 2 else Path(tempfile.mkdtemp(prefix="rtchannel-")) / "glasgow_side_by_side.png"
+out = (Path(sys.argv[2]) if len(sys.argv) > 2
+       else Path(tempfile.mkdtemp(prefix="rtchannel-")) / "glasgow_side_by_side.png")
 
 leg = Motion.procedural("walk", height=1.74, speed=1.1, distance=2.4, pad_before=0.1, pad_after=0.1, seed=3)
 walk = back_and_forth(leg, legs=3, turn_s=0.7)

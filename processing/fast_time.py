@@ -182,7 +182,7 @@ def projector(wf: Waveform, cfg):
         for a in range(0, iq.shape[0], _ROWS):
             x = iq[a:a + _ROWS]
             prof[a:a + _ROWS] = scipy.fft.fft(x if plain else x * taper, axis=-1)[:, cols] / scale
-            if coh is not None:
+            if coh is not None and h is not None:  # coh exists exactly when h does
                 coh[a:a + _ROWS] = _rows_dot(x, h)
         return Projection(profiles=prof, range=rng, waveform=wf, coherent=coh, coherent_carrier_hz=f_eff, t0=t0)
 

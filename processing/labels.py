@@ -2,6 +2,9 @@
 store labels items with it, the classifier's outputs follow it, and the motion generators use its names.
 Dependency-free, so the CLI's parser can read it before any command runs."""
 
-ACTIVITIES = ("fall", "walk", "stand", "sit", "pick")
+from typing import Literal, get_args
 
-__all__ = ["ACTIVITIES"]
+Activity = Literal["fall", "walk", "stand", "sit", "pick"]  # the type of one name (pydantic fields, mypy)
+ACTIVITIES: tuple[str, ...] = get_args(Activity)
+
+__all__ = ["ACTIVITIES", "Activity"]

@@ -119,7 +119,7 @@ class PathSet:
         return self.link == other.link and all(_same_bits(getattr(self, f), getattr(other, f))
                                                for f in ("times", "delays", "gains", "ids", "delay_rates"))
 
-    __hash__ = None  # mutable arrays: not hashable
+    # not hashable (mutable arrays): @dataclass with eq=True and frozen=False sets __hash__ = None
 
     def to_xarray(self):
         """The paths as an `xarray.Dataset`: ``delay`` [s] and ``gain`` (complex, |a|^2 = P_r/P_t) over

@@ -88,7 +88,7 @@ class CalibrationRow(BaseModel):
     def _key(self, activity: str | None) -> str:
         if activity in self.emd_m_s:
             return activity
-        return max(self.emd_m_s, key=self.emd_m_s.get)
+        return max(self.emd_m_s, key=self.emd_m_s.__getitem__)
 
 
 class CalibrationTable(BaseModel):
@@ -188,7 +188,8 @@ def target(budget: str | float, table: CalibrationTable, activity: str | None,
     return float(budget)
 
 
-def choose(budget: str | float, backend: str, table: CalibrationTable, activity: str | None = None) -> tuple[CalibrationRow, float | None]:
+def choose(budget: str | float, backend: str, table: CalibrationTable,
+           activity: str | None = None) -> tuple[CalibrationRow, float | None]:
     """(cheapest row of `backend` within the budget on every calibrated activity, the target [m/s] for
     `activity`)."""
     if backend not in {r.backend for r in table.rows}:
@@ -200,7 +201,12 @@ def choose(budget: str | float, backend: str, table: CalibrationTable, activity:
     acts = list(default.emd_m_s)
 
     def meets(r: CalibrationRow) -> bool:
-        return all(r.emd_m_s.get(a, math.inf) <= target(budget, table, a, r) for a in acts)
+        for a in acts:
+            limit = target(budget, table, a, r)
+            assert limit is not None  # "exact" returned above: every other budget is a limit
+            if not r.emd_m_s.get(a, math.inf) <= limit:
+                return False
+        return True
 
     # a row whose errors equal the default's to the last digit made the default's signatures (e.g. walls="auto"
     # with isotropic antennas culls nothing): its other time is the machine's noise, not a saving

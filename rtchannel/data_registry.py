@@ -224,6 +224,6 @@ def licences() -> dict[str, list[str]]:
     return out
 
 
-__all__ = ["DataUnavailableError", "Entry", "registry", "entries", "fetch", "fetch_many", "fetch_folder", "resolve_spec",
-           "local_path", "mirror_dir", "cache_dir", "cache_file", "status", "licences", "how_to_get", "DATA_PREFIX",
-           "MIRROR_ENV", "CACHE_ENV"]
+__all__ = ["DataUnavailableError", "Entry", "registry", "entries", "fetch", "fetch_many", "fetch_folder",
+           "resolve_spec", "local_path", "mirror_dir", "cache_dir", "cache_file", "status", "licences", "how_to_get",
+           "DATA_PREFIX", "MIRROR_ENV", "CACHE_ENV"]

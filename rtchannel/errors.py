@@ -38,5 +38,5 @@ MOVE_THE_PERSON = ("; move the person (CLI --start X Y / --heading DEG / --trim,
 
 USER_ERRORS: tuple[type[BaseException], ...] = (InputError, ValidationError)
 
-__all__ = ["MOVE_THE_PERSON", "USER_ERRORS", "InputError", "ConfigError", "SceneFileError", "RadarPlacementError", "CheckpointError",
-           "TrainingError", "DatasetFormatError"]
+__all__ = ["MOVE_THE_PERSON", "USER_ERRORS", "InputError", "ConfigError", "SceneFileError", "RadarPlacementError",
+           "CheckpointError", "TrainingError", "DatasetFormatError"]

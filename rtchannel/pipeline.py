@@ -103,7 +103,8 @@ def _described(backend_options: dict) -> dict:
 def _config(traced: dict, radar: RadarConfig, synthesis: str, noise_seed: int) -> dict:
     """Every parameter that made a result (JSON-serialisable; stored by `SimulationResult.save`): what the
     channel was traced from (`traced`: activity, motion, backend, backend_options) and how it was synthesised."""
-    return {**{k: traced.get(k, d) for k, d in (("activity", ""), ("motion", {}))}, "radar": radar.model_dump(mode="json"),
+    return {**{k: traced.get(k, d) for k, d in (("activity", ""), ("motion", {}))},
+            "radar": radar.model_dump(mode="json"),
             **{k: traced.get(k, d) for k, d in (("backend", ""), ("backend_options", {}))},
             **{k: traced[k] for k in ("accuracy", "backend_stats") if k in traced},
             "synthesis": synthesis, "noise_seed": noise_seed,
@@ -145,7 +146,7 @@ def _budgeted(motion: Motion, radar: RadarConfig, backend: str, options: dict, a
         from rtchannel.accuracy import resolve
 
         options, record = resolve(accuracy, backend, radar, motion.activity, options, calibration)
-    stats = {} if "stats" in inspect.signature(backend_function(backend)).parameters else None
+    stats: dict | None = {} if "stats" in inspect.signature(backend_function(backend)).parameters else None
     return options, record, stats
 
 

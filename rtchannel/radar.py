@@ -26,8 +26,8 @@ from processing.radar.receiver import ANCORTEK_2400T2R4, ANCORTEK_580AD, Receive
 from processing.radar.waveform import Waveform
 from processing.errors import InputError
 
-MONOSTATIC_TOLERANCE_M = 0.1
-MAX_COORDINATE_M = 1e4  # antenna coordinates beyond 10 km are a unit mistake, not a room  # tx and rx closer than this share one position (co-located horns)
+MONOSTATIC_TOLERANCE_M = 0.1  # tx and rx closer than this share one position (co-located horns)
+MAX_COORDINATE_M = 1e4  # antenna coordinates beyond 10 km are a unit mistake, not a room
 
 
 class Link(BaseModel):
@@ -107,21 +107,23 @@ class RadarConfig(BaseModel):
                                     description="antenna pattern of links without their own")
     receiver: ReceiverConfig | None = Field(default_factory=lambda: ANCORTEK_2400T2R4.receiver,
                                             description="transmit power and receiver noise; None: noiseless")
-    orientation_deg: float = Field(0.0, allow_inf_nan=False, ge=-1e6, le=1e6, description="rotation [deg] about z applied to "
-                                   "the links as given (the seed's direction angle); kept for provenance")
+    orientation_deg: float = Field(0.0, allow_inf_nan=False, ge=-1e6, le=1e6,
+                                   description="rotation [deg] about z applied to the links as given (the seed's "
+                                   "direction angle); kept for provenance")
 
     def __repr__(self) -> str:
         def where(lk):
             rx = "" if lk.rx is None else f" -> {tuple(round(x, 2) for x in lk.rx)}"
             return f"{lk.name} {tuple(round(x, 2) for x in lk.tx)}{rx}"
 
-        shown = "; ".join(where(lk) for lk in self.links[:3]) + (f"; ... {len(self.links) - 3} more" if len(self.links) > 3 else "")
+        shown = "; ".join(where(lk) for lk in self.links[:3])
+        shown += f"; ... {len(self.links) - 3} more" if len(self.links) > 3 else ""
         rx = "noiseless" if self.receiver is None else (f"receiver {self.receiver.transmit_power_dbm:g} dBm, NF "
                                                         f"{self.receiver.noise_figure_db:g} dB")
         n = len(self.links)
-        text = (f"<Radar: {n} link{'s' if n != 1 else ''} (m: {shown}), turned {self.orientation_deg:g} deg; {self.waveform!r}; "
-                f"DSP window {self.dsp.window_chirps} hop {self.dsp.hop_chirps} chirps, {self.dsp.range_sum} range sum, "
-                f"{self.dsp.static_removal} MTI; {self.antenna.kind} antennas; {rx}>")
+        text = (f"<Radar: {n} link{'s' if n != 1 else ''} (m: {shown}), turned {self.orientation_deg:g} deg; "
+                f"{self.waveform!r}; DSP window {self.dsp.window_chirps} hop {self.dsp.hop_chirps} chirps, "
+                f"{self.dsp.range_sum} range sum, {self.dsp.static_removal} MTI; {self.antenna.kind} antennas; {rx}>")
         return text if len(text) <= 600 else text[:595] + "...>"
 
     @model_validator(mode="after")

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import json
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -48,17 +50,19 @@ class LinkResult:
     iq: np.ndarray | None = None
 
     def __repr__(self) -> str:
-        iq = "no IQ" if self.iq is None else f"IQ [{' x '.join(map(str, np.shape(self.iq)))}] {np.asarray(self.iq).dtype}"
+        iq = ("no IQ" if self.iq is None
+              else f"IQ [{' x '.join(map(str, np.shape(self.iq)))}] {np.asarray(self.iq).dtype}")
         return f"<LinkResult: {np.size(self.chirp_times)} chirps, {iq}; {self.signature!r}>"
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, LinkResult):
             return NotImplemented
-        same_iq = (self.iq is None) == (other.iq is None) and (self.iq is None or (
-            np.shape(self.iq) == np.shape(other.iq) and np.array_equal(self.iq, other.iq)))
+        same_iq = (self.iq is None and other.iq is None) or (
+            self.iq is not None and other.iq is not None and np.shape(self.iq) == np.shape(other.iq)
+            and np.array_equal(self.iq, other.iq))
         return self.signature == other.signature and same_iq and np.array_equal(self.chirp_times, other.chirp_times)
 
-    __hash__ = None
+    # not hashable (mutable arrays): @dataclass with eq=True and frozen=False sets __hash__ = None
 
 
 @dataclass
@@ -101,7 +105,7 @@ class SimulationResult:
         return (self.links == other.links and self.timing == other.timing
                 and _json_normal(self.config) == _json_normal(other.config))
 
-    __hash__ = None
+    # not hashable (mutable arrays): @dataclass with eq=True and frozen=False sets __hash__ = None
 
     def save(self, path: str | Path, seed: int | None = None) -> Path:
         """Write `signature.h5` (DESIGN.md layout, atomically) with the parameters that made it, the chirp
@@ -178,7 +182,8 @@ class SimulationResult:
         if isinstance(ax, (str, os.PathLike)):
             warnings.warn("SimulationResult.plot(out_dir) is deprecated: use save_figures(out_dir) to write the "
                           "PNGs, plot(ax=...) to draw", DeprecationWarning, stacklevel=2)
-            return self.save_figures(ax, title=title)
+            return self.save_figures(Path(ax), title=title)
+        draw: dict[str, Callable[..., Any]]
         draw = {"pvt": plots.plot_pvt, "mean_velocity": plots.plot_mean_velocity, "range": plots.plot_range,
                 "range_doppler": plots.plot_range_doppler}
         if kind not in draw:
@@ -242,7 +247,7 @@ class PathSets:
         return (self.paths == other.paths and self.radar == other.radar and self.timing == other.timing
                 and _json_normal(self.config) == _json_normal(other.config))
 
-    __hash__ = None
+    # not hashable (mutable arrays): @dataclass with eq=True and frozen=False sets __hash__ = None
 
     def save(self, path: str | Path) -> Path:
         """Write the channel to the HDF5 file `path` (atomically): every link's arrays bit for bit, the radar

@@ -28,8 +28,9 @@ def main() -> None:
                 sin_g = (h_r + h_f) / r_img
                 r_te, r_tm = fresnel(sin_g, concrete(f_hz))
                 rough = 20 * np.log10(kirchhoff_specular(2 * sin_g, WALL_ROUGHNESS_M, lam))
-                print(f"  {d:.0f} m, grazing {np.degrees(np.arcsin(sin_g)):4.1f} deg: H {20 * np.log10(abs(r_te) * r / r_img):6.1f}"
-                      f"  V {20 * np.log10(abs(r_tm) * r / r_img):6.1f}  (roughness {rough:5.2f} more)")
+                print(f"  {d:.0f} m, grazing {np.degrees(np.arcsin(sin_g)):4.1f} deg: "
+                      f"H {20 * np.log10(abs(r_te) * r / r_img):6.1f}  V {20 * np.log10(abs(r_tm) * r / r_img):6.1f}"
+                      f"  (roughness {rough:5.2f} more)")
 
 
 if __name__ == "__main__":

@@ -103,7 +103,8 @@ def model_path(tmp_path_factory):
     for k in range(40):
         sign = 1 if k % 2 == 0 else -1
         t = int(rng.integers(80, 200))
-        x.append(preprocess(velocity_line(sign * rng.uniform(0.5, 3.0), t, rng), LINE_V, np.arange(t) * 0.016, pre)[None])
+        line = velocity_line(sign * rng.uniform(0.5, 3.0), t, rng)
+        x.append(preprocess(line, LINE_V, np.arange(t) * 0.016, pre)[None])
         y.append(ACTIVITIES.index("walk" if sign > 0 else "fall"))
     mcfg = ModelConfig(n_classes=len(ACTIVITIES), n_branches=1, input_size=(32, 32), padding="same")
     res = train(np.stack(x), np.array(y), mcfg, TrainConfig(epochs=6, patience=6, batch_size=8, group_split=False,
@@ -158,15 +159,18 @@ SLOW = {
     "test_ancortek.py": ["test_two_channels_interleaved_and_conjugate", "test_round_trip_reproduces_signature"],
     "test_backend_agreement.py": ["*"],
     "test_body_rcs.py": ["*"],
-    "test_classifier.py": ["test_evaluate_recordings_from_dat", "test_training_reaches_high_accuracy_and_reload_is_identical",
+    "test_classifier.py": ["test_evaluate_recordings_from_dat",
+                           "test_training_reaches_high_accuracy_and_reload_is_identical",
                            "test_library_training_is_the_clis_and_can_start_from_a_checkpoint",
-                           "test_cli_train_evaluate_crossval", "test_checkpoint_unpacking_to_more_than_the_limit_is_refused_unread"],
+                           "test_cli_train_evaluate_crossval",
+                           "test_checkpoint_unpacking_to_more_than_the_limit_is_refused_unread"],
     "test_classifier_augment.py": ["test_cli_augment_scale_keeps_only_the_stretch_and_velocity_scale",
                                    "test_cli_train_with_augment_records_settings_and_loads",
                                    "test_cli_train_intensity_power_and_augment_noise_off"],
     "test_cli.py": ["test_render_writes_scene_png", "test_console_script_flushes_before_ending",
                     "test_simulate_writes_signature_file_and_plots"],
-    "test_dataset_run.py": ["test_two_dask_workers_equal_one_worker", "test_killed_run_resumes_without_duplicates_or_gaps",
+    "test_dataset_run.py": ["test_two_dask_workers_equal_one_worker",
+                            "test_killed_run_resumes_without_duplicates_or_gaps",
                             "test_same_config_same_signatures_other_seed_differs"],
     "test_dsp_determinism.py": ["test_whole_chain_same_bytes_with_one_and_two_blas_threads"],
     "test_facet_speed.py": ["test_indexed_gains_equal_the_gathered_route_bitwise"],

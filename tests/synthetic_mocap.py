@@ -13,12 +13,18 @@ _BONES = [("lowerback", "root", (0, 1, 0), 0.12, "rx ry rz"), ("upperback", "low
           ("thorax", "upperback", (0, 1, 0), 0.12, "rx ry rz"), ("lowerneck", "thorax", (0, 1, 0), 0.08, "rx ry rz"),
           ("upperneck", "lowerneck", (0, 1, 0), 0.08, "rx ry rz"), ("head", "upperneck", (0, 1, 0), 0.10, "rx ry rz")]
 for _s, _x in (("l", 1), ("r", -1)):
-    _BONES += [(f"{_s}hipjoint", "root", (_x, -0.5, 0), 0.12, ""), (f"{_s}femur", f"{_s}hipjoint", (0, -1, 0), 0.43, "rx ry rz"),
-               (f"{_s}tibia", f"{_s}femur", (0, -1, 0), 0.42, "rx"), (f"{_s}foot", f"{_s}tibia", (0, -0.3, 1), 0.14, "rx rz"),
-               (f"{_s}toes", f"{_s}foot", (0, 0, 1), 0.05, "rx"), (f"{_s}clavicle", "thorax", (_x, 0.2, 0), 0.17, "ry rz"),
-               (f"{_s}humerus", f"{_s}clavicle", (_x, 0, 0), 0.28, "rx ry rz"), (f"{_s}radius", f"{_s}humerus", (_x, 0, 0), 0.25, "rx"),
-               (f"{_s}wrist", f"{_s}radius", (_x, 0, 0), 0.05, "ry"), (f"{_s}hand", f"{_s}wrist", (_x, 0, 0), 0.08, "rx rz"),
-               (f"{_s}fingers", f"{_s}hand", (_x, 0, 0), 0.04, "rx"), (f"{_s}thumb", f"{_s}wrist", (_x, 0, 0.5), 0.04, "rx rz")]
+    _BONES += [(f"{_s}hipjoint", "root", (_x, -0.5, 0), 0.12, ""),
+               (f"{_s}femur", f"{_s}hipjoint", (0, -1, 0), 0.43, "rx ry rz"),
+               (f"{_s}tibia", f"{_s}femur", (0, -1, 0), 0.42, "rx"),
+               (f"{_s}foot", f"{_s}tibia", (0, -0.3, 1), 0.14, "rx rz"),
+               (f"{_s}toes", f"{_s}foot", (0, 0, 1), 0.05, "rx"),
+               (f"{_s}clavicle", "thorax", (_x, 0.2, 0), 0.17, "ry rz"),
+               (f"{_s}humerus", f"{_s}clavicle", (_x, 0, 0), 0.28, "rx ry rz"),
+               (f"{_s}radius", f"{_s}humerus", (_x, 0, 0), 0.25, "rx"),
+               (f"{_s}wrist", f"{_s}radius", (_x, 0, 0), 0.05, "ry"),
+               (f"{_s}hand", f"{_s}wrist", (_x, 0, 0), 0.08, "rx rz"),
+               (f"{_s}fingers", f"{_s}hand", (_x, 0, 0), 0.04, "rx"),
+               (f"{_s}thumb", f"{_s}wrist", (_x, 0, 0.5), 0.04, "rx rz")]
 BONES = {b[0]: b for b in _BONES}
 HIPS_Y = 0.054 + 0.43 + 0.42 + 0.042 + 0.03  # root height standing: hip joint, femur, tibia, foot drop, sole
 

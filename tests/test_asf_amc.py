@@ -153,8 +153,10 @@ def test_opencap_json_errors_are_one_line(tmp_path):
 
 def _joint_tracks_of(m):
     names = {"left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "LKnee": "LeftLeg", "RKnee": "RightLeg",
-             "ankle_l": "LeftFoot", "ankle_r": "RightFoot", "left_big_toe": "LeftToeBase", "right_big_toe": "RightToeBase",
-             "left_shoulder": "LeftArm", "right_shoulder": "RightArm", "l_elbow": "LeftForeArm", "r_elbow": "RightForeArm",
+             "ankle_l": "LeftFoot", "ankle_r": "RightFoot",
+             "left_big_toe": "LeftToeBase", "right_big_toe": "RightToeBase",
+             "left_shoulder": "LeftArm", "right_shoulder": "RightArm",
+             "l_elbow": "LeftForeArm", "r_elbow": "RightForeArm",
              "left_wrist": "LeftHand", "right_wrist": "RightHand", "neck": "Neck1", "nose": "Head"}
     return names, np.stack([m.positions[:, m.rig.index(v)] for v in names.values()], axis=1)
 

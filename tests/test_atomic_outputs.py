@@ -47,8 +47,9 @@ def test_no_direct_output_writes():
 
 def test_scan_finds_a_direct_write():
     """The scan can fail: each pattern matches the kind of line it must catch."""
-    for line in ['(out / "m.json").write_text(s)', 'with open(out, "w", newline="") as f:', "np.savez_compressed(p, a=1)",
-                 "fig.savefig(path)", "df.to_csv(p)", "json.dump(d, f)", 'h5py.File(p, "w")']:
+    for line in ['(out / "m.json").write_text(s)', 'with open(out, "w", newline="") as f:',
+                 "np.savez_compressed(p, a=1)", "fig.savefig(path)", "df.to_csv(p)", "json.dump(d, f)",
+                 'h5py.File(p, "w")']:
         assert DIRECT.search(line) and not _allowed("rtchannel/x.py", line), line
 
 

@@ -207,7 +207,8 @@ def test_active_time_mode_crops_idle_standing():
     moving = act[40] > 0.5
     assert moving.all()
     assert (whole[40] > 0.5).sum() == 10
-    np.testing.assert_allclose(act, preprocess(p[:, 200:300], v, t[200:300], PreprocessConfig(n_time=50, time_mode="resample")))
+    np.testing.assert_allclose(act, preprocess(p[:, 200:300], v, t[200:300],
+                                               PreprocessConfig(n_time=50, time_mode="resample")))
 
 
 def _small_clf():
@@ -268,7 +269,8 @@ def test_diverging_training_raises_and_saves_nothing(tmp_path):
     mcfg = ModelConfig(input_size=(16, 16), padding="same", channels=(4, 4), mlp_hidden=8, batch_norm=False)
     with pytest.raises(TrainingError, match="training diverged: the .*loss became (nan|inf)"):
         # +-3.3e38 inputs: the first conv sums +inf and -inf (float32 overflow), the loss is nan
-        train(np.where(x > 0.5, 3.3e38, -3.3e38).astype(np.float32), y, mcfg, TrainConfig(epochs=3, lr=1.0, group_split=False, threads=1), progress=False, log=None)
+        train(np.where(x > 0.5, 3.3e38, -3.3e38).astype(np.float32), y, mcfg,
+              TrainConfig(epochs=3, lr=1.0, group_split=False, threads=1), progress=False, log=None)
     x_nan = x.copy()
     x_nan[3, 0, 2, 2] = np.nan
     with pytest.raises(TrainingError, match="non-finite"):

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from processing.classifier import Classifier, ModelConfig, PreprocessConfig, build_model, load_checkpoint, save_checkpoint
+from processing.classifier import (Classifier, ModelConfig, PreprocessConfig, build_model, load_checkpoint,
+                                   save_checkpoint)
 from processing.classifier.checkpoint import ENSEMBLE_VERSION
 from processing.classifier.ensemble import MAX_MEMBERS, SoftVote, ensemble
 from processing.errors import CheckpointError, InputError

@@ -137,7 +137,8 @@ def test_user_error_types_are_one_line_exit_2(tmp_path, capsys, shared_data):
         assert issubclass(cls, InputError) and issubclass(cls, USER_ERRORS)
     assert isinstance(MotionImportError("x.bvh", "bad", line=3), USER_ERRORS)
     take = tmp_path / "take.bvh"
-    take.write_text(shared_data("mocap/cmu/sit/75_17.bvh").read_text().replace("Frame Time: 0.0333332", "Frame Time: 1e300", 1))
+    text = shared_data("mocap/cmu/sit/75_17.bvh").read_text()
+    take.write_text(text.replace("Frame Time: 0.0333332", "Frame Time: 1e300", 1))
     assert main(["simulate", "--motion-file", str(take), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     line = _one_error_line(capsys)
     assert "take.bvh, line" in line and "frame time 1e300" in line
@@ -152,7 +153,8 @@ def test_resampling_a_motion_file_to_an_absurd_rate_is_refused(tmp_path, capsys,
 def test_output_path_under_a_file_is_one_line(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    args = ["simulate", "--activity", "fall", "--duration", "0.9", "--out", str(blocker / "out"), "--quiet", "--no-plots"]
+    args = ["simulate", "--activity", "fall", "--duration", "0.9", "--out", str(blocker / "out"), "--quiet",
+            "--no-plots"]
     assert main(args) == 2
     assert str(blocker) in _one_error_line(capsys)
 

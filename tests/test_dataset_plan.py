@@ -102,7 +102,8 @@ def test_missing_motion_folder_and_bad_yaml_are_one_line(tmp_path, capsys):
     assert re.search(r"presets: [a-z, ]*\bseed\b", capsys.readouterr().err)
 
 
-SEED_TAKES = (registered("mocap/cmu/walk_daz/*.bvh") + registered("mocap/hdm05/pick/*") + registered("mocap/hdm05/asf/*")
+SEED_TAKES = (registered("mocap/cmu/walk_daz/*.bvh") + registered("mocap/hdm05/pick/*")
+              + registered("mocap/hdm05/asf/*")
               + ["mocap/cmu/sit/75_17.bvh", "mocap/opencap/sit_stand/opencap_STS_sample_mocap.json"])
 
 

@@ -157,7 +157,8 @@ def test_verify_finds_corrupt_chunk_and_repair_keeps_the_rest(dataset):
     entries, bad = scan_shards(root)  # without verify the damage is invisible
     assert len(entries) == 6 and bad == []
     entries, bad = scan_shards(root, verify=True, repair=True)
-    assert bad == ["a.h5"] and sorted(e["item_id"] for e in entries) == ["fall-0", "fall-1", "fall-2", "walk-0", "walk-2"]
+    assert bad == ["a.h5"]
+    assert sorted(e["item_id"] for e in entries) == ["fall-0", "fall-1", "fall-2", "walk-0", "walk-2"]
     assert (root / "shards" / "a.h5.bad").is_file()  # the damaged original is kept
     with h5py.File(root / "shards" / "a.h5", "r") as f:  # the rewritten shard holds the 3 verified items
         assert sorted(f) == ["fall-0", "walk-0", "walk-2"] and f.attrs["format"] == "rtchannel-dataset-shard/1"
@@ -167,7 +168,8 @@ def test_verify_finds_corrupt_chunk_and_repair_keeps_the_rest(dataset):
 
 @pytest.mark.parametrize("line, message", [
     ('{"activity": "walk"}', r"index\.jsonl: line 3: entry lacks a valid 'item_id'"),
-    ('{"item_id": "x", "shard": "a.h5", "links": [], "label": "1", "sha256": {}}', r"line 3: entry lacks a valid 'label'"),
+    ('{"item_id": "x", "shard": "a.h5", "links": [], "label": "1", "sha256": {}}',
+     r"line 3: entry lacks a valid 'label'"),
     ("[1, 2]", r"line 3: expected a JSON object, got list"),
     ("{not json", r"line 3: not valid JSON"),
 ])

@@ -87,7 +87,8 @@ def _same(got, ref):
         assert np.array_equal(ps.gains, gains)  # the same sums in the same order
 
 
-RADAR = RadarConfig(links=[Link(name="a", tx=(3.0, 0.0, 1.1)), Link(name="b", tx=(0.0, -3.0, 1.1), rx=(0.3, -2.9, 1.2))])
+RADAR = RadarConfig(links=[Link(name="a", tx=(3.0, 0.0, 1.1)),
+                           Link(name="b", tx=(0.0, -3.0, 1.1), rx=(0.3, -2.9, 1.2))])
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +118,8 @@ def test_caches_follow_antennas_radar_and_seed(scene_and_body):
     idx = np.arange(0, m.n_frames, 6)
     verts = skin_vertices(av, m, idx)
     moved = RadarConfig(links=[Link(name="a", tx=(2.5, 0.8, 1.0))])
-    wide = RADAR.model_copy(update={"links": [RADAR.links[0]], "dsp": RADAR.dsp.model_copy(update={"min_range_m": 2.5})})
+    wide = RADAR.model_copy(update={"links": [RADAR.links[0]],
+                                    "dsp": RADAR.dsp.model_copy(update={"min_range_m": 2.5})})
     for radar, seed in ((RADAR, 0), (moved, 0), (RADAR, 1), (wide, 0), (RADAR, 0)):
         got = clutter.clutter_paths(rt, radar, m.times, verts, av.faces, idx, seed)
         _same(got, _reference(rt, radar, m.times, verts, av.faces, idx, seed))

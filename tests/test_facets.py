@@ -149,7 +149,8 @@ def test_body_hidden_behind_a_wall_gives_zero_signal():
 def test_antenna_inside_the_body_path_is_rejected():
     m = generate("walk", duration=2.5, start=(1.0, 0.0))  # walks through the radar at x = 3 m
     with pytest.raises(RadarPlacementError, match="the body at t"):
-        facet_paths(m, _radar(Link(name="r", tx=(3.0, 0.0, 1.1))), scene="free_space", lod=LOD, walls=False, clutter=False)
+        facet_paths(m, _radar(Link(name="r", tx=(3.0, 0.0, 1.1))), scene="free_space", lod=LOD, walls=False,
+                    clutter=False)
 
 
 def test_diffuse_phases_are_seeded_fixed_per_facet_and_shared_by_its_paths():
@@ -162,7 +163,8 @@ def test_diffuse_phases_are_seeded_fixed_per_facet_and_shared_by_its_paths():
                 double_bounce=True)
     a = facet_paths(m, radar, seed=0, **opts, clutter=False)["r"]
     b = facet_paths(m, radar, seed=1, **opts, clutter=False)["r"]
-    assert np.array_equal(a.gains, facet_paths(m, radar, seed=0, **opts, clutter=False)["r"].gains)  # same seed, same gains
+    again = facet_paths(m, radar, seed=0, **opts, clutter=False)["r"]
+    assert np.array_equal(a.gains, again.gains)  # same seed, same gains
     assert np.array_equal(a.ids, b.ids) and np.array_equal(a.gains != 0, b.gains != 0)
     on = a.gains != 0
     f = a.ids % n_faces

@@ -172,7 +172,7 @@ def _rests_on_seat(chair, m, seated):
     seat top in the median seated frame."""
     from rtchannel.scene.chair_fit import _skin
 
-    p = chair.to_local(_skin(m, "10k")[seated])
+    p = chair.to_local(_skin(m, "10k")[0][seated])
     h = chair.seat_height
     over = (np.abs(p[..., 0]) <= SEAT_DEPTH_M / 2) & (np.abs(p[..., 1]) <= SEAT_WIDTH_M / 2) & (
         p[..., 2] > h - SEAT_THICKNESS_M)
@@ -186,6 +186,31 @@ def test_skin_estimate_of_the_seat_agrees_with_the_generator(sit):
     est = chair_for(anonymous).seat_height
     # lowest buttock skin 0.086 m below the hip joints vs the generator's 0.095 m: 0.45 - 0.009
     assert est == pytest.approx(0.45, abs=0.015) and est < 0.45
+
+
+def test_feet_tucked_under_the_seat_do_not_lower_it(sit, monkeypatch):
+    """A short sitter's heels can sit under the pelvis (an OpenCap sit-to-stand take with a 1.48 m body put the
+    seat at 0.02 m). Feet moved onto the floor right under the hips must leave the skin estimate unchanged."""
+    import rtchannel.body.skinning as skinning
+    from rtchannel.body.avatar import load_avatar
+
+    anonymous = replace(sit, params={})
+    av = load_avatar("10k")
+    names = av.rig.names
+    feet = np.isin(np.asarray(av.dense_weights()).argmax(axis=1),
+                   [names.index(b) for b in ("LeftFoot", "RightFoot", "LeftToeBase", "RightToeBase")])
+    hips = anonymous.positions[:, names.index("Hips")]
+    plain = skinning.skin_vertices
+
+    def tucked(avatar, motion, *a, **k):
+        v = np.array(plain(avatar, motion, *a, **k))
+        v[:, feet, :2] = hips[:, None, :2]
+        v[:, feet, 2] = 0.02
+        return v
+
+    monkeypatch.setattr(skinning, "skin_vertices", tucked)
+    # the same tolerance as the untucked estimate above: 0.45 m generator seat, buttock skin within 1.5 cm
+    assert chair_for(anonymous).seat_height == pytest.approx(0.45, abs=0.015)
 
 
 def test_real_take_75_17(take):
@@ -227,8 +252,10 @@ def test_cli_chair_option(sit):
 
     p = build_parser()
     # one chair default: the CLI's is the API's
-    assert p.parse_args(["simulate", "--out", "x"]).chair == p.parse_args(["render", "--out", "x"]).chair == DEFAULT_CHAIR
-    assert {inspect.signature(f).parameters["chair"].default for f in (simulate, simulate_radars, trace)} == {DEFAULT_CHAIR}
+    assert (p.parse_args(["simulate", "--out", "x"]).chair == p.parse_args(["render", "--out", "x"]).chair
+            == DEFAULT_CHAIR)
+    defaults = {inspect.signature(f).parameters["chair"].default for f in (simulate, simulate_radars, trace)}
+    assert defaults == {DEFAULT_CHAIR}
     assert p.parse_args(["render", "--out", "x", "--chair", "none"]).chair == "none"
     with pytest.raises(SystemExit):
         p.parse_args(["simulate", "--out", "x", "--chair", "sofa"])

@@ -174,7 +174,8 @@ def _patch_c3d(raw: bytes, marker: int, frames: int, n: int, value: float, rate:
 
 @fuzz(6)
 @given(marker=st.integers(0, 40), frames=st.integers(0, 89), n=st.integers(1, 60),
-       value=st.sampled_from([np.nan, np.inf, -np.inf, 1e20, 0.0, -1e6]), rate=st.sampled_from([60.0, 0.0, 1e9, 1e-3, np.nan]),
+       value=st.sampled_from([np.nan, np.inf, -np.inf, 1e20, 0.0, -1e6]),
+       rate=st.sampled_from([60.0, 0.0, 1e9, 1e-3, np.nan]),
        units=st.sampled_from([b"mm", b"m ", b"km", b"  "]))
 def test_c3d_semantic_fuzz(c3d_base, tmp_path_factory, marker, frames, n, value, rate, units):
     from rtchannel.motion.load import load_motion
@@ -208,7 +209,8 @@ number_text = st.one_of(st.sampled_from(NASTY_NUMBERS),
                         st.floats(allow_nan=True, allow_infinity=True).map(repr),
                         st.integers(-10**6, 10**6).map(str))
 sample_text = st.one_of(
-    st.tuples(number_text, st.sampled_from(["+", "-", " + ", ""]), number_text, st.sampled_from(["i", "j", "I", "", " i"]))
+    st.tuples(number_text, st.sampled_from(["+", "-", " + ", ""]), number_text,
+              st.sampled_from(["i", "j", "I", "", " i"]))
     .map(lambda t: "".join(t)),
     st.text(max_size=8), st.just(""))
 # well-formed samples (as `write_dat` writes them) in whole sweeps of the good header's 8 samples, so that valid
@@ -377,7 +379,8 @@ def small_dataset(tmp_path_factory):
 
 json_value = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(), st.floats(allow_nan=False),
                                     st.text(max_size=5)),
-                          lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner, max_size=3),
+                          lambda inner: (st.lists(inner, max_size=3)
+                                         | st.dictionaries(st.text(max_size=5), inner, max_size=3)),
                           max_leaves=6)
 
 

@@ -1,8 +1,8 @@
 """PHASE 2 of issue 13 (hardening): radar/waveform/DSP bounds, plans and the commands' own arguments.
 
 Every case is now a regression test (the last xfail cases, the plans', pass since plan_yaml.py); a new open
-case is added as xfail with a reason naming its owner (``run=False`` if it would allocate GiB or hang). The contract is the
-same as in `test_fuzz_inputs.py`: one line on stderr naming the file/field, exit status 2, before any
+case is added as xfail with a reason naming its owner (``run=False`` if it would allocate GiB or hang). The contract is
+the same as in `test_fuzz_inputs.py`: one line on stderr naming the file/field, exit status 2, before any
 long work; a valid input gives finite output.
 
 Owners: `processing/radar/waveform.py` and `processing/dsp/signatures.py` (bounds), `rtchannel/dataset/plan.py`,
@@ -138,7 +138,8 @@ def test_plan_product_counted_not_expanded(tmp_path, capsys, no_expansion):
     # 100 000 variants x 3 heights x 18 directions x 10 SNRs = 5.4e7 items, and 3e9 with 3 sources x 2 x 3 x ...
     plan = tmp_path / "p.yaml"
     plan.write_text("name: x\nmotion: {sources: [{procedural: walk, variants: 100000}], heights: [1.6, 1.7, 1.8]}\n"
-                    "physical: {directions: seed, angles_deg: null}\nsignal: {snr_db: [0, 5, 10, 15, 20, 25, 30, 35, 40, 45]}\n")
+                    "physical: {directions: seed, angles_deg: null}\n"
+                    "signal: {snr_db: [0, 5, 10, 15, 20, 25, 30, 35, 40, 45]}\n")
     line = _one_line_exit_2(capsys, ["dataset", "--config", str(plan), "--dry-run"])
     assert "5.4e+07 work items" in line and "motion.sources 100000" in line
     plan.write_text("name: x\nmotion: {sources: [{procedural: walk, variants: 100000}, {procedural: fall, variants: "
@@ -179,7 +180,8 @@ def test_plan_backend_options_are_scalars(tmp_path, capsys, options, needle):
                                                            "!!python/object:os.system x", "\ufeffname: x", "...",
                                                            # valid plans, so that the accepting path is reached too
                                                            "name: x\nmotion: {sources: [{procedural: fall}]}\n",
-                                                           "\ufeffname: y\nmotion:\n  sources:\n    - procedural: walk\n"])))
+                                                           "\ufeffname: y\nmotion:\n  sources:\n"
+                                                           "    - procedural: walk\n"])))
 def test_plan_yaml_fuzz(tmp_path_factory, text):
     """Arbitrary text: the plan loads or raises one of the user-error types (nothing else escapes)."""
     from rtchannel.dataset.plan import load_plan
@@ -202,13 +204,15 @@ plan_doc = st.fixed_dictionaries({
     "name": st.just("x"),
     "motion": st.fixed_dictionaries({
         "sources": st.lists(st.fixed_dictionaries({"procedural": st.sampled_from(["fall", "walk", "sit", "dance"]),
-                                                   "variants": st.one_of(st.integers(1, 4), st.integers(1, 4), st.integers(-1, 150_000))}),
+                                                   "variants": st.one_of(st.integers(1, 4), st.integers(1, 4),
+                                                                         st.integers(-1, 150_000))}),
                             min_size=1, max_size=3)},
         optional={"heights": list_of(st.one_of(st.floats(1.1, 2.3), st.none())),
                   "time_scales": list_of(st.floats(-1, 3)), "mirror": list_of(st.booleans()),
                   "headings_deg": list_of(st.floats(-10, 10))}),
 }, optional={
-    "physical": st.fixed_dictionaries({}, optional={"directions": st.one_of(st.just("seed"), list_of(st.integers(-1, 20))),
+    "physical": st.fixed_dictionaries({}, optional={"directions": st.one_of(st.just("seed"),
+                                                                            list_of(st.integers(-1, 20))),
                                                     "angles_deg": list_of(st.floats(-200, 200), 3)}),
     "signal": st.fixed_dictionaries({}, optional={"snr_db": list_of(st.one_of(st.floats(-10, 60), st.none()), 12)}),
     "backend_options": st.dictionaries(st.sampled_from(["body_rcs_m2", "lod", "x"]), opt_value, max_size=2),

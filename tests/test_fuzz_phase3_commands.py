@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import yaml
 from test_data_registry import fake  # noqa: F401 - the registry fixture (mirror, cache, HTTP origin)
-from test_real_eval import model_path  # noqa: F401 - the module-scoped tiny single-radar model
 
 import synthetic_mocap as sm
 from processing.errors import InputError
@@ -62,7 +61,7 @@ def test_image_size_is_bounded_before_decoding(tmp_path, size):
 
 
 @pytest.mark.parametrize("command", ["evaluate", "robustness"])
-def test_decompression_bomb_in_images_is_one_line(model_path, tmp_path, capsys, command):  # noqa: F811
+def test_decompression_bomb_in_images_is_one_line(model_path, tmp_path, capsys, command):
     folder = tmp_path / "imgs"
     folder.mkdir()
     png_bomb(folder / "1P01A01R01.png")
@@ -89,7 +88,8 @@ def _plan(tmp_path, sources, **motion) -> str:
     ({"files": "j.npz", "activity": "pick", "trim": [0.8, 0.2]}, r"trim \[0\.8, 0\.2\]: need 0 <= START < END"),
     ({"files": "j.npz", "activity": "pick", "trim": [-0.5, 0.5]}, r"trim \[-0\.5, 0\.5\]: need 0 <= START < END"),
     ({"files": "j.npz", "activity": "pick", "trim": [50, None]}, r"j\.npz: trim starts at 50 s, after the take's end"),
-    ({"files": "j.npz", "activity": "pick", "trim": [0.5, 0.51]}, r"j\.npz: trim \(0\.5, 0\.51\) s leaves fewer than two"),
+    ({"files": "j.npz", "activity": "pick", "trim": [0.5, 0.51]},
+     r"j\.npz: trim \(0\.5, 0\.51\) s leaves fewer than two"),
     ({"files": "take.amc", "activity": "pick", "options": {"skeleton": 5}}, r"options\.skeleton: expected str"),
     ({"files": "j.npz", "activity": "pick", "options": {"max_gap_s": 1.0}}, r"max_gap_s and on_long_gap apply to C3D"),
 ])
@@ -215,7 +215,8 @@ def test_walker_outside_the_room_is_refused_before_tracing(tmp_path, capsys, no_
     outside = Motion.procedural("walk", start=(5.0, 0.0), seed=0)
     with pytest.raises(InputError, match=r"scene room: the person is outside the room's walls \(x -4\.\.4 m"):
         trace(outside, backend="facets")
-    with pytest.raises(InputError, match=r"scene room:-10,-6,-2,2,3: the person is outside the room.s walls \(x -10\.\.-6 m"):
+    with pytest.raises(InputError,
+                       match=r"scene room:-10,-6,-2,2,3: the person is outside the room.s walls \(x -10\.\.-6 m"):
         trace(Motion.procedural("walk", seed=0), backend="sionna", scene="room:-10,-6,-2,2,3")
     with pytest.raises(AssertionError, match="the backend ran"):  # inside: checked, then traced
         trace(Motion.procedural("walk", seed=0), backend="facets")

@@ -115,7 +115,8 @@ def test_amc_values_beyond_the_bvh_bounds_are_refused(tmp_path, capsys, bone, co
     frames = sm.amc_frames()
     frames[3][bone][col] = value
     amc, asf = _amc(tmp_path, frames)
-    with pytest.raises(MotionImportError, match=rf"frame 3: bone '{bone}': (angle|position) .* is not finite or beyond"):
+    with pytest.raises(MotionImportError,
+                       match=rf"frame 3: bone '{bone}': (angle|position) .* is not finite or beyond"):
         read_amc(amc, read_asf(asf))
     assert f"bone '{bone}'" in _simulate(capsys, amc, "--skeleton", asf)
 

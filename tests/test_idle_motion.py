@@ -159,7 +159,7 @@ def test_glasgow_idle_amplitudes_are_the_ones_measured_on_real_standing_takes():
     # the preset's idle values are scripts/idle_from_mocap.py's speed-matched amplitudes of two real standing takes
     # (CMU 77_02 and the standing part of 82_08): their simulated chest, head and hand speeds equal the real ones
     # within 25 % (one common factor on the measured angles; the remaining per-part mismatch is ~15 %), and the
-    # drawn scale 0.3-2 spans the two takes' chest-speed ratios to their mean (0.4-1.6)
+    # drawn scale 0.3-3 (a decade around that mean) spans the two takes' chest-speed ratios to their mean (0.4-1.6)
     import importlib.util
     from pathlib import Path
 

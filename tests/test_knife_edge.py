@@ -65,8 +65,8 @@ def test_clearance_of_nu_minus_078_is_no_loss_and_nu_24_is_20_db():
 
 def test_the_field_goes_smoothly_from_clear_to_deep_shadow():
     """Sweeping the edge from nu = -1.2 to 4.5 the segment in 5 mm steps: the amplitude never
-    rises, equals the ITU curve at the geometric nu (capped at NU_MAX) (the grid's top row is the edge, so the estimate is exact up
-    to rounding: 1e-9) and ends at J(NU_MAX)."""
+    rises, equals the ITU curve at the geometric nu (capped at NU_MAX) (the grid's top row is the edge, so the
+    estimate is exact up to rounding: 1e-9) and ends at J(NU_MAX)."""
     d2 = np.linalg.norm(TARGET - POS) - D1
     per_nu = 1.0 / float(fresnel_nu(1.0, D1, d2, LAM))
     hs = np.arange(-1.2 * per_nu, 4.5 * per_nu, 0.005)

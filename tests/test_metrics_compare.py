@@ -142,3 +142,13 @@ def test_single_realisation_floor_is_the_distance_between_two_single_reference_r
     _, _, self_error = se.converged_reference(se.REFERENCE, None, None, seeds=4)
     assert self_error["single_run_emd_m_s"] == pytest.approx(0.25, abs=1e-12)
     assert self_error["emd_m_s"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_sweep_without_repeats_is_refused_before_any_run():
+    # Found by mypy: repeats=0 left no run to take the signatures of (an AttributeError on None, or a
+    # StatisticsError on the empty timings), after the reference had already been simulated.
+    from processing.errors import InputError
+    from rtchannel.analysis.speed_error import sweep
+
+    with pytest.raises(InputError, match="repeats must be at least 1, got 0"):
+        sweep(None, None, repeats=0)

@@ -108,6 +108,10 @@ def test_bvh_round_trip_cmu_rig_and_units(tmp_path):
         np.testing.assert_allclose(m.positions, src.positions, atol=1e-5)
         grounded = load_motion(p)
         assert grounded.params["floor"] and np.isfinite(grounded.positions).all()
+    from processing.errors import InputError
+
+    with pytest.raises(InputError, match="units must be given"):  # was a TypeError (1.0 / None); found by mypy
+        write_bvh(src, tmp_path / "no_unit.bvh", units=None)
 
 
 def _cut(text: str, marker: str, extra: int) -> str:

@@ -14,7 +14,8 @@ _SPEC.loader.exec_module(stats)
 def test_clip_stats_of_a_back_and_forth_walk():
     # mean velocity 1.2 sin(2 pi t / 5) over 10 s: 3 sign changes (t = 2.5, 5, 7.5 s); |v| > 0.3 m/s except
     # within asin(0.25) / (2 pi / 5) = 0.20 s of each zero: 3 inner zeros (2.5, 5, 7.5 s) and one side of the
-    # ends (0, 10 s) -> slow share (3 x 2 x 0.20 + 2 x 0.20) / 10 = 0.16; 95th percentile of |1.2 sin| = 1.2 sin(0.95 pi / 2) = 1.19 m/s.
+    # ends (0, 10 s) -> slow share (3 x 2 x 0.20 + 2 x 0.20) / 10 = 0.16; 95th percentile of |1.2 sin| =
+    # 1.2 sin(0.95 pi / 2) = 1.19 m/s.
     t = np.arange(0.0, 10.0, 0.01)
     v = np.linspace(-6, 6, 321)
     mv = 1.2 * np.sin(2 * np.pi * t / 5)

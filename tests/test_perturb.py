@@ -117,7 +117,9 @@ def test_stretch_changes_the_active_duration_by_the_factor(sig, factor):
     n0, n1 = sig.valid.sum(), s.valid.sum()
     assert abs(n1 - factor * n0) <= 2, (n0, n1, factor * n0)
     # about the clip centre: the active span's midpoint stays put (within a column)
-    mid = lambda v: np.flatnonzero(v).mean()
+    def mid(v):
+        return np.flatnonzero(v).mean()
+
     assert abs(mid(s.valid) - mid(sig.valid)) <= 1.0
     # the curve's peak speed is kept (a pace change, not a velocity change)
     assert s.mean_velocity.max() == pytest.approx(sig.mean_velocity.max(), abs=0.02)

@@ -54,7 +54,8 @@ def test_radar_distance_and_height_are_drawn_per_item_along_the_link_azimuth():
 def test_placement_draws_leave_every_other_draw_unchanged():
     plain, placed = expand(_plan()), expand(_plan(physical={"distance_m": [1.0, 5.0], "height_m": [0.5, 1.6]}))
     assert [it.motion for it in plain] == [it.motion for it in placed]
-    assert [it.radar["antenna"]["downtilt_deg"] for it in plain] == [it.radar["antenna"]["downtilt_deg"] for it in placed]
+    tilt = [[it.radar["antenna"]["downtilt_deg"] for it in items] for items in (plain, placed)]
+    assert tilt[0] == tilt[1]
     assert [it.seed for it in plain] == [it.seed for it in placed]
     assert {tuple(it.radar["links"][0]["tx"]) for it in plain} == {(0.0, -3.0, 1.0)}
 
@@ -114,8 +115,9 @@ def test_anywhere_items_build_clips_that_begin_or_end_inside_the_activity():
 
 
 def test_slow_walks_cover_their_distance_and_arm_swing_scales_the_swing():
-    """A 0.3 m/s walk (frail gait) is generated and covers exactly its distance; arm_swing 0.3 cuts the shoulder's swing angle to 0.3x; the hand's fore-aft travel relative to the hips
-    also carries the trunk's counter-rotation (unchanged), so it drops to about half (measured 0.50)."""
+    """A 0.3 m/s walk (frail gait) is generated and covers exactly its distance; arm_swing 0.3 cuts the shoulder's
+    swing angle to 0.3x; the hand's fore-aft travel relative to the hips also carries the trunk's counter-rotation
+    (unchanged), so it drops to about half (measured 0.50)."""
     from rtchannel.motion.pose import avatar_rig
 
     def wrist_swing(m):

@@ -20,9 +20,9 @@ def test_point_delays_are_exact_geometry():
     # scatterer 0 is the head centre, half-way along the Head bone: compare through its own position
     pos = m.attached_points(np.array([JOINT_INDEX["Head"]]), m.rig.rest[[JOINT_INDEX["Head"]]] +
                             0.5 * (m.rig.tails[[JOINT_INDEX["Head"]]] - m.rig.rest[[JOINT_INDEX["Head"]]]))[:, 0]
-    np.testing.assert_allclose(paths["mono"].delays[:, 0], 2 * np.linalg.norm(pos - [3, 0, 1.1], axis=1) / C0, rtol=1e-12)
-    np.testing.assert_allclose(paths["bi"].delays[:, 0], (np.linalg.norm(pos - [3, 0, 1.1], axis=1)
-                                                          + np.linalg.norm(pos - [0, -3, 1.1], axis=1)) / C0, rtol=1e-12)
+    r1, r2 = np.linalg.norm(pos - [3, 0, 1.1], axis=1), np.linalg.norm(pos - [0, -3, 1.1], axis=1)
+    np.testing.assert_allclose(paths["mono"].delays[:, 0], 2 * r1 / C0, rtol=1e-12)
+    np.testing.assert_allclose(paths["bi"].delays[:, 0], (r1 + r2) / C0, rtol=1e-12)
     assert paths["mono"].n_paths == 21
     seed = point_paths(m, radar, scale="seed")["mono"]
     assert np.allclose(np.sum(np.abs(seed.gains[0]) ** 2), 1.0)

@@ -158,6 +158,15 @@ def test_compiled_po_gains_match_the_reference_maths(mat):
     np.testing.assert_allclose(got, ref, rtol=1e-11, atol=1e-12 * np.abs(ref).max())
 
 
+def test_a_rough_material_needs_the_wavelength():
+    # Found by mypy: without it Kirchhoff's S divided by None deep inside numpy (TypeError).
+    from rtchannel.backends.surface_scattering import diffuse_sqrt_rcs
+
+    down, up = np.array([[0.0, 0.0, -1.0]]), np.array([[0.0, 0.0, 1.0]])
+    with pytest.raises(ValueError, match="a rough material needs the wavelength"):
+        diffuse_sqrt_rcs(SurfaceMaterial(eta=5.2 - 0.4j, roughness_m=1e-3), down, up, up, np.ones(1), np.ones(1))
+
+
 def test_propagation_formulas_have_one_home_and_read_back():
     """The radar equation's path coefficient and its read-back are inverses; the points backend and the
     compiled facets kernels use the same constant (one home: processing.radar.propagation)."""

@@ -1,5 +1,5 @@
-"""Sim-to-real on real spectrogram images (twelve Glasgow images through the data registry): `evaluate --images` with a tiny model
-trained here on synthetic inputs, the noise-aware valid mask, the active-span fix, and the real-data
+"""Sim-to-real on real spectrogram images (twelve Glasgow images through the data registry): `evaluate --images` with
+a tiny model trained here on synthetic inputs, the noise-aware valid mask, the active-span fix, and the real-data
 Table I (`compare --real`)."""
 import csv
 import json

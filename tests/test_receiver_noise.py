@@ -8,12 +8,6 @@ from pydantic import ValidationError
 from processing.radar.antenna import directivity_dbi
 from processing.dsp.signatures import DSPConfig, signatures
 from processing.fast_time import project
-
-
-def range_profiles(iq, wf, cfg=DSPConfig()):
-    """All N range bins of the DSP's range FFT (its normalisation), and their ranges [m]."""
-    proj = project(iq, wf, cfg.model_copy(update={"max_range_m": 1e6}))
-    return proj.profiles, proj.range
 from processing.pathset import PathSet
 from processing.radar.receiver import (ANCORTEK_2400T2R4, ANCORTEK_580AD, K_BOLTZMANN, LeakageConfig, ReceiverConfig,
                                  add_receiver_noise, noise_power_per_sample, processing_gain_db,
@@ -23,6 +17,12 @@ from processing.radar.waveform import C0, Waveform
 
 WF = Waveform()  # seed radar: 128 samples per 0.5 ms chirp, fs = 256 kHz
 CFG = ReceiverConfig(transmit_power_dbm=10.0, noise_figure_db=10.0, chain_gain_db=20.0)
+
+
+def range_profiles(iq, wf, cfg=DSPConfig()):
+    """All N range bins of the DSP's range FFT (its normalisation), and their ranges [m]."""
+    proj = project(iq, wf, cfg.model_copy(update={"max_range_m": 1e6}))
+    return proj.profiles, proj.range
 
 
 def _db(x):

@@ -70,11 +70,11 @@ def test_compiled_copy_is_pinned_to_the_reference():
                                     ((1.0, -1.5, 1.6), (-0.5, 2.0, 0.4))])  # steep rays: TE and TM mixed on walls
 def test_image_paths_match_sionna_rts_own_reflected_paths(tx, rx, pol):
     """Every first-order reflection of the room (four walls and the floor) that Sionna RT 2.2 finds between two
-    vertically (or, "H", horizontally) polarised isotropic antennas: the facets backend's wall factor (conj: synthesiser convention)
-    equals Sionna's path coefficient divided by the free-space spreading lambda / (4 pi L), within 0.5 dB and
-    5 deg (the issue's tolerance; float32 geometry in Sionna is the only difference: measured ~1e-5 dB). The
-    room file's concrete is smooth for Sionna (S = 0), so the walls are compared smooth (roughness_m 0; the
-    roughness factor is tested in tests/test_surfaces.py)."""
+    vertically (or, "H", horizontally) polarised isotropic antennas: the facets backend's wall factor (conj:
+    synthesiser convention) equals Sionna's path coefficient divided by the free-space spreading lambda / (4 pi L),
+    within 0.5 dB and 5 deg (the issue's tolerance; float32 geometry in Sionna is the only difference: measured
+    ~1e-5 dB). The room file's concrete is smooth for Sionna (S = 0), so the walls are compared smooth (roughness_m 0;
+    the roughness factor is tested in tests/test_surfaces.py)."""
     from rtchannel.scene.llvm import import_mitsuba
 
     import_mitsuba()

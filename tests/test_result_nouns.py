@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from processing.errors import InputError
+from processing.pathset import PathSet
 from rtchannel import Motion
 
 
@@ -47,8 +48,6 @@ def result(channel):
 
 def _frame_local_pathset() -> "PathSet":
     """A Sionna-like path set: no ids, delay rates, absent paths (NaN delay, gain 0)."""
-    from processing.pathset import PathSet
-
     rng = np.random.default_rng(0)
     delays = rng.uniform(1e-8, 4e-8, (7, 5))
     gains = rng.normal(size=(7, 5)) + 1j * rng.normal(size=(7, 5))
@@ -71,7 +70,8 @@ def test_no_public_object_prints_more_than_600_characters(walk, channel, result)
                "ReceiverConfig": ANCORTEK_2400T2R4.receiver, "RadarHardware": ANCORTEK_580AD,
                "LeakageConfig": LeakageConfig(), "GaussianBeam": ANCORTEK_2400T2R4.antenna,
                "YagiBeam": ANCORTEK_580AD.antenna, "Isotropic": rtchannel.Isotropic(), "PathSet": channel["radar1"],
-               "PathSet, frame-local": _frame_local_pathset(), "PathSets": channel, "Signature": result.signatures["radar1"],
+               "PathSet, frame-local": _frame_local_pathset(), "PathSets": channel,
+               "Signature": result.signatures["radar1"],
                "LinkResult": result.links["radar1"], "SimulationResult": result}
     long = {k: len(repr(v)) for k, v in objects.items() if len(repr(v)) > 600}
     assert not long, long

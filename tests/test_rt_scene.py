@@ -158,7 +158,8 @@ def test_symlink_and_nested_include_escapes_are_refused(tmp_path, secret):
     ('<!DOCTYPE s [<!ENTITY a "aaaa">]><scene>&a;</scene>', "DTDs and entities are not allowed"),
     ('<!DOCTYPE s SYSTEM "file:///etc/passwd"><scene/>', "DTDs and entities are not allowed"),
     ("<mesh/>", r"not a Mitsuba scene file \(the root element is <mesh>"),
-    ('<scene><shape type="ply" id="x"><string name="filename" value="$nope"/></shape></scene>', r"\$nope has no <default>"),
+    ('<scene><shape type="ply" id="x"><string name="filename" value="$nope"/></shape></scene>',
+     r"\$nope has no <default>"),
     ('<scene><shape type="ply" id="x"><string name="filename" value="missing.ply"/></shape></scene>', "does not exist"),
     ('<scene><include filename="s.xml"/></scene>', "nested deeper than 8 or in a cycle"),
 ])
@@ -177,7 +178,8 @@ def test_scene_may_use_its_folder_and_the_project_assets(tmp_path):
     d.mkdir()
     shutil.copy(SCENES["room"], d / "base.xml")
     p = _scene(tmp_path, '<include filename="base.xml"/>', name="with_include.xml")
-    p.write_text(f'<scene version="2.1.0"><include filename="base.xml"/><include filename="{SCENES["free_space"]}"/></scene>')
+    p.write_text(f'<scene version="2.1.0"><include filename="base.xml"/>'
+                 f'<include filename="{SCENES["free_space"]}"/></scene>')
     check_scene_file(p)  # own folder and scenes/: allowed
     for name in SCENES.values():
         check_scene_file(name)
@@ -190,7 +192,8 @@ def test_mitsuba_load_error_is_one_line_without_quoted_content(tmp_path):
     msg = str(exc.value)
     assert "\n" not in msg and "could not load the scene" in msg and "no_such_plugin" not in msg
     assert load_error_line("x.xml", RuntimeError('Error at line 3, col 7: bad "secret text"')) == \
-        "x.xml: the ray tracer could not load the scene (line 3, column 7): RuntimeError: Error at line 3, col 7: bad ..."
+        ("x.xml: the ray tracer could not load the scene (line 3, column 7): RuntimeError: Error at line 3, col 7: "
+         "bad ...")
 
 
 # ------------------------------------------------------------------ loading without Sionna RT (facets)
@@ -261,6 +264,23 @@ def test_scenes_only_sionna_can_load_fall_back_to_it(tmp_path):
     assert [w.name for w in mine.walls] == [w.name for w in sionnas.walls] == [n for n, _, _ in sionnas.static_meshes]
     with pytest.raises(mitsuba_scene.NeedsSionna):
         mitsuba_scene.rewrite_materials('<scene><bsdf type="absorber-radio-material" id="a"/></scene>')
+
+
+def test_an_itu_material_whose_type_has_no_value_is_a_scene_error_on_both_loaders(tmp_path):
+    # Found by mypy: the Mitsuba-only loader copied the missing value (None) into the rewritten XML, and
+    # serialising it raised TypeError (the CLI's internal-error exit, not a one-line user error); Sionna's loader
+    # reads it as the material "None" and refuses it. Both must give the same one-line scene error.
+    from rtchannel.body.avatar import load_avatar
+
+    p = tmp_path / "typeless.xml"
+    p.write_text('<scene version="2.1.0"><bsdf type="itu-radio-material" id="mat-itu_concrete">'
+                 '<string name="type"/></bsdf><shape type="cube" id="box"><ref id="mat-itu_concrete" name="bsdf"/>'
+                 '</shape></scene>')
+    av = load_avatar("2k")
+    for sionna in (False, True):
+        with pytest.raises(SceneFileError, match=r"typeless\.xml: the ray tracer could not load the scene") as e:
+            RTScene(p, av.faces, av.vertices, 24.125e9, sionna=sionna)
+        assert "\n" not in str(e.value)
 
 
 def test_itu_materials_are_sionnas():

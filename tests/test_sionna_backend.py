@@ -130,7 +130,8 @@ def test_radar_near_geometry_rejected(body):
     v, f = body
     sc = get_scene("room", "2k", 1.75, 24.125e9)
     verts = v[None]
-    with pytest.raises(RadarPlacementError, match=r"antenna at \(3\.995, 0\.000, 1\.100\) m is 0\.50 cm from 'wall_xp'"):
+    with pytest.raises(RadarPlacementError,
+                       match=r"antenna at \(3\.995, 0\.000, 1\.100\) m is 0\.50 cm from 'wall_xp'"):
         trace_frames(sc, _radar((3.995, 0.0, 1.1)), np.zeros(1), verts, np.zeros_like(verts), samples_per_src=1000)
 
 

@@ -72,7 +72,6 @@ def test_the_seed_chooses_the_held_out_factors():
 
 
 def test_a_split_that_empties_a_class_is_refused():
-    entries = _entries(60)
     labels = np.array([0] * 55 + [1] * 5)
     groups = [f"g{i}" for i in range(60)]
     f = {"distance_m": np.r_[np.zeros(55), np.ones(5)]}  # class 1 lives only in the high tail

@@ -2,9 +2,10 @@
 benchmarks/bench_startup.py, not here).
 
 `rtchannel --help` and the argument parser of every command load none of the heavy libraries; the facets
-backend loads Mitsuba but not Sionna RT (nor its preview libraries) nor torch; the points backend's whole chain (procedural motion, paths, synthesis, DSP, signature.h5) runs without the ray tracer
-(Mitsuba, Dr.Jit, Sionna RT), the mesh library (trimesh), numba or torch, and with the default
-(rectangular) tapers and moving-average MTI without scipy.signal; its figures use matplotlib without pyplot.
+backend loads Mitsuba but not Sionna RT (nor its preview libraries) nor torch; the points backend's whole chain
+(procedural motion, paths, synthesis, DSP, signature.h5) runs without the ray tracer (Mitsuba, Dr.Jit, Sionna RT),
+the mesh library (trimesh), numba or torch, and with the default (rectangular) tapers and moving-average MTI
+without scipy.signal; its figures use matplotlib without pyplot.
 Each check runs in a fresh interpreter: this test process has long since imported everything.
 """
 from __future__ import annotations
@@ -32,7 +33,8 @@ print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in _names or m
 
 def _loaded(code: str, names, timeout: float = 300.0) -> list[str]:
     """Modules among `names` loaded after running `code` in a fresh interpreter of this worktree."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
+    env = {**os.environ,
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
     env.pop("MPLBACKEND", None)
     r = subprocess.run([sys.executable, "-c", code + _REPORT.format(names=set(names))], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=timeout)

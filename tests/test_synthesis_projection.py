@@ -143,7 +143,7 @@ def test_receiver_noise_and_leakage_are_projected_exactly():
     rx = ANCORTEK_2400T2R4.receiver.model_copy(update={"leakage": LeakageConfig(coupling_db=-45.0)})
     paths = _random_paths(WF, "hermite")
     cfg = DSPConfig()
-    t_full, parts = [], []
+    parts = []
     done = 0
     for t, iq in iter_synthesis(paths, WF):
         parts.append(receive(iq, rx, WF, seed=(3, 0), first_chirp=done))

@@ -58,7 +58,8 @@ def test_image_extra_delay_equals_mirror_geometry():
     tx = np.array([3.0, 0.0, 1.1])
     radar = RadarConfig(links=[Link(name="r", tx=tuple(tx))])
     scene = get_scene("room", LOD, m.rig.height, radar.waveform.carrier_hz)
-    ps = facet_paths(m, radar, scene=scene, lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None, clutter=False)["r"]
+    ps = facet_paths(m, radar, scene=scene, lod=LOD, walls=True, trace_fps=None, min_relative_gain_db=None,
+                     clutter=False)["r"]
     n_faces = len(scene.body_faces)
     av = load_avatar(LOD)
     verts = skin_vertices(av, m, [0])[0]
@@ -213,7 +214,8 @@ def test_floor_double_bounce_is_the_image_geometry_times_gamma_squared(rx):
     # incidence cosines (z_antenna + z_c) / |c - antenna'|, times the floor's Kirchhoff roughness factor
     # exp(-(4 pi sigma_h cos / lambda)^2 / 2) at each (the same roughness its clutter scatters with).
     free = facet_paths(m, RadarConfig(links=[Link(name="r", tx=tuple(tx_i), rx=tuple(rx_i))], antenna=Isotropic()),
-                       scene="free_space", lod=LOD, walls=False, trace_fps=None, min_relative_gain_db=None, clutter=False)["r"]
+                       scene="free_space", lod=LOD, walls=False, trace_fps=None, min_relative_gain_db=None,
+                       clutter=False)["r"]
     g_free = dict(zip(free.ids, free.gains[0]))
     both = np.array([g_free.get(i, 0) != 0 for i in f])
     assert both.mean() > 0.9  # the free-space run misses only facets whose floor leg the body blocks

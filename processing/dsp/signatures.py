@@ -114,7 +114,7 @@ class Signature:
                 return False
         return True
 
-    __hash__ = None  # mutable arrays: not hashable
+    # not hashable (mutable arrays): @dataclass with eq=True and frozen=False sets __hash__ = None
 
     def to_xarray(self):
         """The signatures as an `xarray.Dataset` with coordinates ``velocity`` [m/s], ``time`` [s], ``range``
@@ -129,6 +129,7 @@ class Signature:
                 "range_distribution": (("range", "time"), self.range_distribution, {"long_name": "p'(r,t), eq. 10",
                                                                                     "units": "1"}),
                 "valid": ("time", np.asarray(self.valid, bool), {"long_name": "window carries signal"})}
+        coords: dict[str, tuple]  # the range-Doppler axes may join below
         coords = {"velocity": ("velocity", self.velocity, {"units": "m/s", "long_name": "radial velocity, "
                                                                                          "+ = approaching"}),
                   "time": ("time", self.time, {"units": "s", "long_name": "window centre"}),

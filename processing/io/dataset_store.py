@@ -29,6 +29,7 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -259,7 +260,7 @@ def parse_jsonl_line(line: str, required: dict[str, type] | None = None) -> dict
     if not isinstance(row, dict):
         raise DatasetFormatError(f"expected a JSON object, got {type(row).__name__}")
     for key, typ in (required or {}).items():
-        v = row.get(key)
+        v: Any = row.get(key)
         ok = isinstance(v, typ) and isinstance(v, bool) == (typ is bool)
         if ok and typ is list:  # lists and maps of the index hold names (links) and checksums
             ok = all(isinstance(x, str) for x in v)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 from dataclasses import fields
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -111,7 +112,7 @@ def read_signature_parts(path: str | Path) -> dict:
         {link: chirp start times [n_chirps] s} of the links that stored them, "link_attrs": {link: {name:
         value}}}.
     """
-    out = {"signatures": {}, "iq": {}, "chirp_times": {}, "link_attrs": {}}
+    out: dict[str, Any] = {"signatures": {}, "iq": {}, "chirp_times": {}, "link_attrs": {}}
     with h5py.File(path, "r") as f:
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
         attrs["config"] = json.loads(attrs.get("config", "{}"))

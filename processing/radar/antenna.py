@@ -178,7 +178,8 @@ class _Directional(_Antenna):
     @model_validator(mode="after")
     def _needs_orientation(self):
         if self.boresight is None and self.look_at is None:
-            raise InputError(f"a {self.kind} antenna needs boresight or look_at")
+            # every concrete subclass declares `kind` (a field of its own, so not declared here)
+            raise InputError(f"a {self.kind} antenna needs boresight or look_at")  # type: ignore[attr-defined]
         return self
 
 
@@ -266,7 +267,8 @@ def _directivity_params(spec) -> tuple[str, tuple]:
 def _directivity(kind: str, params: tuple) -> float:
     from scipy.integrate import simpson  # only for shapes not in `_TABULATED`
 
-    cls = {"gaussian": GaussianBeam, "yagi": YagiBeam}[kind]
+    shapes: dict[str, type[GaussianBeam] | type[YagiBeam]] = {"gaussian": GaussianBeam, "yagi": YagiBeam}
+    cls = shapes[kind]
     spec = cls.model_validate(dict(params, boresight=(1.0, 0.0, 0.0)))
     psi = np.linspace(0.0, np.pi, 8193)
     chi = np.linspace(0.0, 2 * np.pi, 256, endpoint=False)  # periodic: the plain mean is spectrally exact

@@ -273,8 +273,9 @@ def _taper(name: str, n: int) -> np.ndarray:
 
 def range_bin_noise(p_sample: float, n_samples: int, range_window: str = "boxcar") -> float:
     """Noise power [W] per range bin, P_n sum(w^2) / sum(w)^2, for white noise of `p_sample` per complex
-    sample under the DSP's range-FFT normalisation (`processing.fast_time.project`) (divide by sum(w)). A range-Doppler bin
-    holds the same level: the DSP's Doppler taper has unit energy, which leaves white noise unchanged."""
+    sample under the DSP's range-FFT normalisation (`processing.fast_time.project`) (divide by sum(w)). A
+    range-Doppler bin holds the same level: the DSP's Doppler taper has unit energy, which leaves white noise
+    unchanged."""
     w = _taper(range_window, n_samples)
     return p_sample * float((w ** 2).sum() / w.sum() ** 2)
 

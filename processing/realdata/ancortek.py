@@ -145,14 +145,16 @@ def read_dat(path: str | Path, n_channels: int = 1, conjugate: bool = False, all
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"recording not found: {path}")
-    if isinstance(n_channels, bool) or not isinstance(n_channels, (int, np.integer)) or not 1 <= n_channels <= MAX_CHANNELS:
+    if (isinstance(n_channels, bool) or not isinstance(n_channels, (int, np.integer))
+            or not 1 <= n_channels <= MAX_CHANNELS):
         raise AncortekFormatError(f"{path}: n_channels must be an integer 1..{MAX_CHANNELS}, got {n_channels!r}")
     if not (isinstance(max_range_m, (int, float)) and max_range_m > 0 and np.isfinite(max_range_m)):
         raise AncortekFormatError(f"{path}: max_range_m must be a positive finite distance, got {max_range_m!r}")
     try:
         size = path.stat().st_size
         if size > MAX_DAT_BYTES:
-            raise AncortekFormatError(f"{path}: file of {size / 2**30:.1f} GiB exceeds the {MAX_DAT_BYTES >> 30} GiB limit")
+            raise AncortekFormatError(f"{path}: file of {size / 2**30:.1f} GiB exceeds the {MAX_DAT_BYTES >> 30} GiB "
+                                      "limit")
         capacity = _count_lines(path)
         with open(path, encoding="ascii", errors="replace", newline=None) as f:
             head, no = [], 0

@@ -236,6 +236,8 @@ def load_rgb(source, name: str | None = None) -> tuple[np.ndarray, str]:
     from PIL import Image, UnidentifiedImageError
 
     name = name or str(source)
+    w: int | None = None
+    h: int | None = None
     try:
         with warnings.catch_warnings():  # PIL's own bomb warning: the size is refused below, in one line
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)

@@ -113,8 +113,9 @@ def render_image(velocity: np.ndarray, time: np.ndarray, layout: ImageLayout, *,
         with np.errstate(divide="ignore"):
             db = 10.0 * np.log10(power)
     box = render_box(velocity, time, db, layout, top_db=top_db, interpolation=interpolation)
+    red, green, blue = layout.background_rgb
     fig = Figure(figsize=(layout.width / dpi, layout.height / dpi), dpi=dpi,
-                 facecolor=np.array(layout.background_rgb) / 255.0)
+                 facecolor=(red / 255.0, green / 255.0, blue / 255.0))
     canvas = FigureCanvasAgg(fig)
     if decorations:
         _decorate(fig, layout, title)
@@ -127,9 +128,9 @@ def render_image(velocity: np.ndarray, time: np.ndarray, layout: ImageLayout, *,
     if not np.array_equal(img[sl], box):
         raise RuntimeError("matplotlib did not place the plot box pixel-exactly")
     if layout.frame_rgb is not None:
-        t, b, l, r = layout.box_top - 1, layout.box_bottom + 1, layout.box_left - 1, layout.box_right + 1
-        img[[t, b], l:r + 1] = layout.frame_rgb
-        img[t:b + 1, [l, r]] = layout.frame_rgb
+        t, b, lft, r = layout.box_top - 1, layout.box_bottom + 1, layout.box_left - 1, layout.box_right + 1
+        img[[t, b], lft:r + 1] = layout.frame_rgb
+        img[t:b + 1, [lft, r]] = layout.frame_rgb
     return img
 
 
@@ -156,8 +157,8 @@ def through_image(sig: Signature, layout: ImageLayout, duration_s: float | None 
     display chain of real spectrogram images (a classifier trained on them sees what it sees on the images).
 
     Like the Glasgow script (``linspace(0, duration, n)`` over the window centres), the window centres are
-    stretched over 0..`duration_s` [s] (default: the layout's time axis, edge to edge) before drawing. The result's range
-    fields are empty (an image has none); `power` is the image's column power; `valid` and mean velocity are
+    stretched over 0..`duration_s` [s] (default: the layout's time axis, edge to edge) before drawing. The result's
+    range fields are empty (an image has none); `power` is the image's column power; `valid` and mean velocity are
     noise-aware exactly as for real images (`real_images.noise_aware`: columns 30 dB below the strongest one
     are noise), so a classifier sees the same masks on both."""
     from dataclasses import replace

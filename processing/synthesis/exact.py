@@ -20,7 +20,7 @@ import sys
 import threading
 import warnings
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -80,6 +80,7 @@ class _PersistentPaths:
         gains *= 1 - w
         later *= w
         gains += later
+        assert self.dspline is not None  # set with the spline
         return self.spline(t), gains, self.dspline(t)
 
 
@@ -154,7 +155,7 @@ def _tone_sum_t(delays, gains, wf: Waveform, rates=None, out: np.ndarray | None 
     c = delays.shape[0]
     n = wf.samples_per_chirp
     if c == 1:  # numpy sums a single column pairwise, not row by row: the chirp would differ in its last bits
-        one = _tone_sum_t(*[None if a is None else np.repeat(a, 2, axis=0) for a in (delays, gains)], wf,
+        one = _tone_sum_t(np.repeat(delays, 2, axis=0), np.repeat(gains, 2, axis=0), wf,
                           None if rates is None else np.repeat(rates, 2, axis=0))[:, :1]
         if out is not None:
             out[...] = one
@@ -386,7 +387,7 @@ def iter_received(paths: PathSet, wf: Waveform, cfg: "ReceiverConfig | None", se
         if _POOL.get("n") != n_threads:
             _POOL.update(n=n_threads, pool=ThreadPoolExecutor(n_threads, thread_name_prefix="rtchannel-synthesis"))
         submit = lambda *a: _POOL["pool"].submit(chunk, *a).result  # noqa: E731
-    pending = deque()
+    pending: deque[tuple[np.ndarray, Callable[[], np.ndarray]]] = deque()
     for t, delays, gains, rates in chunks:
         pending.append((t, submit(delays, gains, rates, first)))
         first += t.size

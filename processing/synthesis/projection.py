@@ -74,7 +74,8 @@ def synthesise_projection(paths: PathSet, wf: Waveform, cfg, receiver=None, seed
     coherent = cfg.range_sum == "coherent"
     # receiver.scale_to_receiver's factor sqrt(P_t G_chain), kept in float64
     scale = 1.0 if receiver is None else math.sqrt(transmit_power_w(receiver) * 10.0 ** (receiver.chain_gain_db / 10))
-    t_parts, prof_parts, coh_parts = [], [], []
+    t_parts, prof_parts = [], []
+    coh_parts: list[np.ndarray] = []
     done = 0
     for t, val in iter_weighted(paths, wf, weights, chunk_chirps=chunk_chirps, method=method,
                                 oversample=oversample):
@@ -91,7 +92,8 @@ def synthesise_projection(paths: PathSet, wf: Waveform, cfg, receiver=None, seed
         done += t.size
         t_parts.append(t)
         prof_parts.append(prof.astype(np.complex64))
-        coh_parts.append(coh)
+        if coh is not None:
+            coh_parts.append(coh)
         if progress is not None:
             progress(t.size)
     if not t_parts:

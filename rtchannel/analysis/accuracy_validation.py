@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import time
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from rtchannel.accuracy import FAST_FACTOR, parse_budget, target
 from rtchannel.analysis.speed_error import QUICK_REFERENCE, _mean_distances, converged_reference
 
 # real takes (data registry path, activity, load/trim options); skipped when the data is not present
-REAL_TAKES = (
+REAL_TAKES: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("mocap/cmu/walk_daz", "walk", {}),
     ("mocap/cmu/sit/75_17.bvh", "sit", {"trim": (0.0, 1.5)}),
     ("mocap/opencap/sit_stand/opencap_STS_sample_mocap.json", "stand", {"trim": (2.8, 4.2)}),
@@ -42,7 +43,7 @@ def held_out_motions(activities=ACTIVITIES, real: bool = True, seeds=(1,)) -> li
     one at 0.6 m/s and one at 1.4 m/s) and the real takes (module doc)."""
     from rtchannel.motion.procedural import generate
 
-    out = []
+    out: list[tuple[str, object]] = []
     for act in activities:
         if act == "walk":
             for seed, speed in ((1, 0.6), (2, 1.4)):
@@ -67,7 +68,7 @@ def _real_take(relpath: str, activity: str, opts: dict):
             path = fetch(relpath, download=False)
         else:
             path = sorted(p for p in fetch_folder(relpath, download=False).iterdir() if p.is_file())[0]
-        load = {"activity": activity}
+        load: dict[str, Any] = {"activity": activity}
         if "skeleton" in opts:  # the actor's ASF: the longest name that starts the AMC's (HDM05 naming)
             asfs = fetch_folder(opts["skeleton"], download=False).glob("*.asf")
             load["skeleton"] = max((a for a in asfs if path.stem.startswith(a.stem)), key=lambda a: len(a.stem))
@@ -102,19 +103,19 @@ def validate(radar, table, motions, budgets=("fast", "balanced", "exact"), seeds
             if progress:
                 progress(1)
         base_emd, base_cost, _ = runs["default"]
-        for budget, (emd, cost, record) in runs.items():
+        for budget, (achieved, cost, record) in runs.items():
             limit, allowance = None, 0.0
             if budget in ("balanced", "fast"):
                 factor = 1.0 if budget == "balanced" else FAST_FACTOR
                 limit = factor * float(base_emd.mean())
-                allowance = 2.0 * _sem_of_difference(emd, factor * base_emd)
+                allowance = 2.0 * _sem_of_difference(achieved, factor * base_emd)
             elif budget not in ("default", "exact"):
                 limit = target(parse_budget(budget), table, motion.activity)
             rows.append({"motion": name, "activity": motion.activity, "budget": str(budget),
                          "chosen": record.get("chosen", "facets defaults"), "target_emd_m_s": limit,
-                         "allowance_m_s": allowance, "achieved_emd_m_s": float(emd.mean()), "s_per_sim_s": cost,
+                         "allowance_m_s": allowance, "achieved_emd_m_s": float(achieved.mean()), "s_per_sim_s": cost,
                          "speedup": base_cost / cost,
-                         "within": None if limit is None else bool(emd.mean() <= limit + allowance)})
+                         "within": None if limit is None else bool(achieved.mean() <= limit + allowance)})
     return rows
 
 

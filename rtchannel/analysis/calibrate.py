@@ -111,8 +111,8 @@ def calibrate(radar, radar_name: str, activities=ACTIVITIES, candidates=CANDIDAT
         reference: the converged reference's setting (default: facets full LOD, full accuracy).
     """
     motions = motions or {a: calibration_motion(a) for a in activities}
-    emd = {s.label: {} for s, _ in candidates}
-    sem = {s.label: {} for s, _ in candidates}
+    emd: dict[str, dict[str, float]] = {s.label: {} for s, _ in candidates}
+    sem: dict[str, dict[str, float]] = {s.label: {} for s, _ in candidates}
     wall = {s.label: 0.0 for s, _ in candidates}
     simulated = 0.0
     floors = {}
@@ -131,7 +131,7 @@ def calibrate(radar, radar_name: str, activities=ACTIVITIES, candidates=CANDIDAT
                 short = replace(motion, positions=motion.positions[:n], rotations=motion.rotations[:n])
                 _run(setting, short, radar, 0)
                 warmed.add(key)
-        runs = {s.label: [] for s, _ in candidates}
+        runs: dict[str, list[float]] = {s.label: [] for s, _ in candidates}
         for s in range(seeds):  # round robin: a change of machine load hits every candidate alike
             for setting, _role in candidates:
                 t, sig = _run(setting, motion, radar, 100 + s)  # seeds apart from the reference's 1..n
@@ -171,7 +171,8 @@ def summary_rows(table: CalibrationTable) -> list[dict]:
     for r in table.rows:
         vals = list(r.emd_m_s.values())
         out.append({"label": r.label, "role": r.role, "s_per_sim_s": r.s_per_sim_s, "speedup": base / r.s_per_sim_s,
-                    "emd_mean": statistics.fmean(vals), "emd_worst": max(vals), **{f"emd_{a}": v for a, v in r.emd_m_s.items()}})
+                    "emd_mean": statistics.fmean(vals), "emd_worst": max(vals),
+                    **{f"emd_{a}": v for a, v in r.emd_m_s.items()}})
     return out
 
 
@@ -191,7 +192,7 @@ def write_calibration(table: CalibrationTable, out_dir) -> list:
     write_text_atomic(p_json, table.model_dump_json(indent=1) + "\n")
     acts = list(table.motions) or sorted({a for r in table.rows for a in r.emd_m_s})
     summ = summary_rows(table)
-    picks = {}
+    picks: dict[str, str | None] = {}
     for budget in ("fast", "balanced", "exact"):
         try:
             picks[budget] = choose(budget, "facets", table)[0].label
@@ -212,7 +213,8 @@ def write_calibration(table: CalibrationTable, out_dir) -> list:
     fig, axes = plt.subplots(1, 2, figsize=(15, 6.5), gridspec_kw={"width_ratios": [1, 1]})
     ax = axes[0]
     for i, (s, r) in enumerate(zip(summ, table.rows), start=1):  # numbered: the labels are in the heat map
-        colour = {"default": "k", "exact": "tab:purple", "points": "tab:green", "measured": "tab:gray"}.get(r.role, "tab:blue")
+        colour = {"default": "k", "exact": "tab:purple", "points": "tab:green",
+                  "measured": "tab:gray"}.get(r.role, "tab:blue")
         ax.scatter(s["s_per_sim_s"], s["emd_worst"], color=colour, s=30, zorder=3)
         mark = [b for b, p in picks.items() if p == r.label]
         ax.annotate(f"{i}" + (f" ({', '.join(mark)})" if mark else ""), (s["s_per_sim_s"], s["emd_worst"]),

@@ -6,6 +6,7 @@ import csv
 import io
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -30,8 +31,10 @@ def run_backends(backends: list[str], activities: list[str], radar: RadarConfig,
         out[b] = {}
         for a in activities:
             # walks are centred on the origin (as the CLI does) so they stop 1 m short of a seed radar
-            motion = generate(a, height=height, seed=seed, **({"start": (-2.0, 0.0)} if a == "walk" else {}))
-            budget = {"accuracy": accuracy, "calibration": calibration} if accuracy is not None and b != "points" else {}
+            start: dict[str, Any] = {"start": (-2.0, 0.0)} if a == "walk" else {}
+            motion = generate(a, height=height, seed=seed, **start)
+            budget = ({"accuracy": accuracy, "calibration": calibration} if accuracy is not None and b != "points"
+                      else {})
             res = simulate(motion, radar, backend=b, **budget, **options.get(b, {}))
             out[b][a] = {name: r.signature for name, r in res.links.items()}
             if progress is not None:
@@ -71,7 +74,8 @@ def write_tables(out_dir: Path, name_a: str, name_b: str, rows, cols, table, per
                                   + [[r, *(f"{x:.4f}" for x in row)] for r, row in zip(rows, table)]))
     p_act = out_dir / f"distances_{name_a}_vs_{name_b}.csv"
     write_text_atomic(p_act, _csv([["activity", "dtw", "tv", "emd_m_s", "rmse_m_s"]] + [
-        [a, f"{d['dtw']:.4f}", f"{d['tv']:.4f}", f"{d['emd']:.4f}", f"{d['rmse']:.4f}"] for a, d in per_activity.items()]))
+        [a, f"{d['dtw']:.4f}", f"{d['tv']:.4f}", f"{d['emd']:.4f}", f"{d['rmse']:.4f}"]
+        for a, d in per_activity.items()]))
     md = [f"Normalised DTW of mean radial velocity, rows {name_a}, columns {name_b} (mean over links)", "",
           "| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for r, row in zip(rows, table):

@@ -33,6 +33,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from processing.atomic import savefig_atomic, write_text_atomic
+from processing.errors import InputError
 from processing.metrics.distances import signature_distances
 from rtchannel.radar import RadarConfig
 
@@ -93,6 +94,7 @@ def _run(setting: Setting, motion, radar: RadarConfig, repeats: int, **extra) ->
         t0 = time.perf_counter()
         res = simulate(motion, radar, backend=setting.backend, **{**setting.options, **extra})
         times.append(time.perf_counter() - t0)
+    assert res is not None  # repeats >= 1 (sweep checks it)
     return statistics.median(times), {k: r.signature for k, r in res.links.items()}
 
 
@@ -152,6 +154,8 @@ def sweep(motion, radar: RadarConfig, settings=SWEEP, reference: Setting = REFER
 
     from rtchannel.pipeline import simulate
 
+    if repeats < 1:
+        raise InputError(f"repeats must be at least 1, got {repeats}")
     warmed: set[str] = set()
     n = max(int(0.3 * motion.fps), 4)
     short = replace(motion, positions=motion.positions[:n], rotations=motion.rotations[:n])

@@ -95,7 +95,8 @@ def _patches(rt_scene, frequency_hz: float, size_m: float) -> Patches:
         e = complex(eps, -sigma / (w * EPSILON_0_F_M))
         r = rt_scene.roughness(name) if hasattr(rt_scene, "roughness") else WALL_ROUGHNESS_M
         for tri in v[f]:
-            edge = max(np.linalg.norm(tri[1] - tri[0]), np.linalg.norm(tri[2] - tri[1]), np.linalg.norm(tri[0] - tri[2]))
+            edge = max(np.linalg.norm(tri[1] - tri[0]), np.linalg.norm(tri[2] - tri[1]),
+                       np.linalg.norm(tri[0] - tri[2]))
             sub = _subdivide(tri[0], tri[1], tri[2], max(1, int(math.ceil(edge / size_m))))
             corners.append(sub)
             shape += [k] * len(sub)
@@ -178,7 +179,7 @@ def clutter_paths(rt_scene, radar, times: np.ndarray, body_vertices: np.ndarray 
         caster = caster_for(rt_scene, faces, verts, antennas, batch_frames, purpose="clutter")
         rays = [_patch_rays(pos, patches) for pos in antennas]
         n_slots = 1 if body_vertices is None else min(len(verts), caster.batch)
-        open_ = [_static_free(caster, pos, patches, *r, n_slots) for pos, r in zip(antennas, rays)]
+        open_ = [_static_free(caster, pos, patches, dirs, dists, n_slots) for pos, (dirs, dists) in zip(antennas, rays)]
         if body_vertices is None:  # the degenerate stand-in hides nothing: the static answer of cell 0
             static = np.stack([o[0] for o in open_]).astype(float)
             free = np.broadcast_to(static[:, None], (len(antennas), len(trace_idx), k_n))
@@ -313,8 +314,8 @@ _LINKS_KEPT = 32  # links per scene: a dataset worker's radars come back sample 
 
 
 def _link_cells(rt_scene, radar, lk, patches: Patches, seed):
-    """(kept patches [N], their cell [N], cell indices [C], cell delays [C] (s), weights [N] complex) of one link: the static
-    part of its clutter (gains with antennas, delays, cells), cached per scene, radar, link and seed."""
+    """(kept patches [N], their cell [N], cell indices [C], cell delays [C] (s), weights [N] complex) of one link:
+    the static part of its clutter (gains with antennas, delays, cells), cached per scene, radar, link and seed."""
     mine = _LINKS.setdefault(rt_scene, {})
     dump = getattr(radar, "model_dump_json", None)  # every radar setting (antennas, DSP ranges, waveform)
     key = None if dump is None else (dump(), lk.name, seed, id(patches))

@@ -17,6 +17,7 @@ from __future__ import annotations
 import ctypes
 import os
 import threading
+from typing import Any
 
 import numba
 import numpy as np
@@ -61,19 +62,18 @@ def _load():
     with _lock:
         if "api" in _state:
             return _state["api"]
-        api = None
+        api: dict[str, Any] | None = None
         try:
             import mitsuba
 
             lib = ctypes.CDLL(os.path.join(os.path.dirname(mitsuba.__file__), "libembree3.so"))
-            api = {}
+            bound: dict[str, Any] = {}
             for key, (sym, res, args) in _API.items():
                 f = getattr(lib, sym)
                 f.restype, f.argtypes = res, args
-                api[key] = f
-            api["device"] = api["new_device"](None)
-            if not api["device"]:
-                api = None
+                bound[key] = f
+            bound["device"] = bound["new_device"](None)
+            api = bound if bound["device"] else None
         except (ImportError, OSError, AttributeError):
             api = None
         _state["api"] = api
@@ -161,7 +161,8 @@ class EmbreeScene:
         self._api = api
         self._scene = api["new_scene"](api["device"])
         api["scene_quality"](self._scene, _BUILD_QUALITY_LOW)
-        self._geoms, self._keep = [], []
+        self._geoms: list[Any] = []  # Embree geometry handles
+        self._keep: list[np.ndarray] = []
         if static is not None and len(static[1]):
             self._add(np.asarray(static[0], np.float32), static[1])
         # Embree reads vertices with 16-byte loads: one float of padding after the last vertex.

@@ -55,7 +55,7 @@ def link_gains(vis, pairs, sources, walls, slot0, cent, norm, area, mesh, materi
         mono = s_tx == s_rx
         # (kind, b, f, p_a, p_b, [(wall, (source, wall index), rows of vis.images[source, wall] or None for
         # all, antenna)], monostatic twin to add)
-        fams = []
+        fams: list[tuple] = []
         if direct_paths:
             b, f = np.nonzero(vis.direct[s_tx] & vis.direct[s_rx])
             fams.append((0, b, f, tx, rx, [], False))
@@ -124,18 +124,20 @@ def _gains_and_twins(material, wavelength, cent, norm, area, mesh, b, f, p_a, p_
     """(gains [N], reverse gains of the twins [T], twin rows [T]): `facet_gains_indexed` on p_a -> p_b, and
     on p_b -> p_a where `twin`; the Lambertian kernel evaluates both directions in one pass (same values)."""
     t = np.flatnonzero(twin)
+    verts, faces = mesh
     if material.pattern != "lambertian" or not t.size:
-        g = facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b, f, p_a, p_b, po, ph, pol)
-        g_rev = None if not t.size else facet_gains_indexed(material, wavelength, cent, norm, area, *mesh, b[t], f[t],
-                                                             p_b[t], p_a[t], po, None if ph is None else ph[t], pol)
+        g = facet_gains_indexed(material, wavelength, cent, norm, area, verts, faces, b, f, p_a, p_b, po, ph, pol)
+        g_rev = None if not t.size else facet_gains_indexed(material, wavelength, cent, norm, area, verts, faces, b[t],
+                                                             f[t], p_b[t], p_a[t], po, None if ph is None else ph[t],
+                                                             pol)
         return g, g_rev, t
     from rtchannel.backends.facet_kernels import indexed_gains
     from rtchannel.backends.surface_scattering import pol_index
 
     s_coef, rough = material.kernel_surface()
-    d, s, d_rev, s_rev = indexed_gains(cent, norm, area, *mesh, b, f, p_a, p_b, material.eta, material.thickness or 0.0,
-                                       wavelength, s_coef, material.xpd_coefficient, po, twin, pol=pol_index(pol),
-                                       rough=rough)
+    d, s, d_rev, s_rev = indexed_gains(cent, norm, area, verts, faces, b, f, p_a, p_b, material.eta,
+                                       material.thickness or 0.0, wavelength, s_coef, material.xpd_coefficient, po,
+                                       twin, pol=pol_index(pol), rough=rough)
     g, g_rev = (d * ph, d_rev[t] * ph[t]) if ph is not None else (d.astype(complex), d_rev[t].astype(complex))
     return (g + s, g_rev + s_rev[t], t) if po else (g, g_rev, t)
 
@@ -249,7 +251,7 @@ def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db, ext
     nxt = np.minimum(slot + 1, len(t_tr) - 1)
     span = np.where(nxt > slot, t_tr[nxt] - t_tr[slot], 1.0)
     wgt = np.where(nxt > slot, (times - t_tr[slot]) / span, 0.0)
-    all_ids = []
+    all_ids: list[np.ndarray] = []
     for pi, (_, verts, vels, faces) in enumerate(parts):
         mine = [c for c in cols if c[0] == pi]
         if not mine:
@@ -275,6 +277,7 @@ def assemble(parts, name, tx, rx, walls, times, trace_idx, id_faces, min_db, ext
     if extra is not None:  # its columns after the facets' (where `merged` puts them); rates 0 where it has none
         gains[:, n_p:], delays[:, n_p:] = extra.gains, extra.delays
         rates[:, n_p:] = 0.0 if extra.delay_rates is None else extra.delay_rates
+        assert extra.ids is not None  # the clutter's paths carry cell ids
         all_ids.append(extra.ids)
     with_rates = has_vel or (extra is not None and extra.delay_rates is not None)  # `_fill_paths` wrote 0 without
     return PathSet(times=times, delays=delays, gains=gains, ids=np.concatenate(all_ids),

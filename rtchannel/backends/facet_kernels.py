@@ -8,6 +8,8 @@ height `rough` [m] (0: the material's fixed scattering coefficient s_coef, as Si
 specular factor from the Kirchhoff model at each element's own angles, `surface_scattering.kirchhoff_specular`)."""
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba
 import numpy as np
 
@@ -47,7 +49,7 @@ def indexed_gains(cent, norm, area, verts, faces, eb, ef, p_a, p_b, eta, thickne
     arr = [np.ascontiguousarray(x, float) for x in (cent, norm, area, verts)]
     idx = [np.ascontiguousarray(x, np.int64) for x in (faces, eb, ef)]
     ends = [np.ascontiguousarray(x, float) for x in (p_a, p_b)]
-    kernel = _facets_parallel if e >= _PARALLEL_MIN else _facets_serial
+    kernel: Callable[..., None] = _facets_parallel if e >= _PARALLEL_MIN else _facets_serial
     kernel(*arr, *idx, *ends, complex(0.0 if pec else eta), pec, float(thickness), float(wavelength), float(s_coef),
            float(xpd), po, diffuse, specular, rev, rev_d, rev_p, int(pol), float(rough))
     if reverse is not None:

@@ -59,9 +59,9 @@ is kept (coherent image power of a 2 s walk within 0.4 dB of the 5k image mesh) 
 count drops ~5x.
 
 Cost drivers (see benchmarks/bench_facets.py): one BVH build per traced frame (batched, straight through
-Mitsuba's Embree with its low-quality builder, ~1 ms CPU per 10k triangles), the Python/numpy work around ~10^4 shadow rays per antenna
-and traced frame (x 2 per wall and image facet; the casts themselves are cheap), the compiled gains and
-antenna patterns (~0.2 us per facet path with PO, `facet_kernels`, reading the facets in place), and the
+Mitsuba's Embree with its low-quality builder, ~1 ms CPU per 10k triangles), the Python/numpy work around ~10^4
+shadow rays per antenna and traced frame (x 2 per wall and image facet; the casts themselves are cheap), the compiled
+gains and antenna patterns (~0.2 us per facet path with PO, `facet_kernels`, reading the facets in place), and the
 [frames, paths] output arrays, which also set the synthesiser's cost; the knobs are `trace_fps`, the LOD,
 `image_lod`, `walls`, `double_bounce` and `min_relative_gain_db`.
 """
@@ -406,14 +406,14 @@ def facet_paths(motion, radar, scene="room", lod: str = "10k", trace_fps: float 
     # Positions and velocities in one blend: skinning is linear in the joint matrices.
     mats = np.concatenate([motion.skinning_matrices(), matrix_derivatives(motion, velocity_method)])
 
-    def skin(av):
+    def skinned(av):
         both = blend_points(av.weights, rest_for_motion(av, motion), mats)
         return both[:motion.n_frames], both[motion.n_frames:]
 
-    verts, vels = skin(avatar)
+    verts, vels = skinned(avatar)
     image_mesh = None
     if coarse is not None:
-        v_c, vel_c = skin(coarse)
+        v_c, vel_c = skinned(coarse)
         image_mesh = (v_c, coarse.faces, vel_c)
     timing["skinning"] = timing.get("skinning", 0.0) + time.perf_counter() - t0
     links = [LinkSpec(lk.name, lk.tx_pos, lk.rx_pos, *radar.antennas(lk)) for lk in radar.links]
@@ -456,7 +456,7 @@ def _side_by_side() -> bool:
 
 def _done(value) -> Future:
     """A finished future holding `value` (the same interface as a submitted job's)."""
-    f = Future()
+    f: Future = Future()
     f.set_result(value)
     return f
 

@@ -216,7 +216,8 @@ def options_table(backend: str) -> str:
         default = "null" if info.default is None else _yaml(info.default)
         bounds = [f"{sym} {_yaml(getattr(m, attr))}" for m in info.metadata for attr, sym in
                   (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")) if getattr(m, attr, None) is not None]
-        unit = (info.json_schema_extra or {}).get("unit", "-")
+        extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+        unit = extra.get("unit", "-")
         rows.append(f"| `{name}` | {kind} | `{default}` | {', '.join(bounds) or '-'} | {unit} | {info.description} |")
     return "\n".join(rows)
 

@@ -159,7 +159,8 @@ def sionna_backend(material: SkinMaterial = PEC, **options) -> BackendFn:
     return run
 
 
-__all__ = ["monostatic_rcs", "sionna_backend", "sphere_mesh", "plate_mesh", "PEC", "BackendFn", "frame_rcs", "walk_body_rcs"]
+__all__ = ["monostatic_rcs", "sionna_backend", "sphere_mesh", "plate_mesh", "PEC", "BackendFn", "frame_rcs",
+           "walk_body_rcs"]
 
 
 def _db(x: float) -> str:
@@ -174,7 +175,7 @@ if __name__ == "__main__":  # the body-RCS table behind points.BODY_RCS_M2 (see 
     ap.add_argument("--lods", nargs="+", default=["2k", "5k", "10k"])
     ap.add_argument("--po", choices=["on", "off", "both"], default="on")
     args = ap.parse_args()
-    rows = [("points", {})]
+    rows: list[tuple[str, dict]] = [("points", {})]
     for po in {"on": [True], "off": [False], "both": [True, False]}[args.po]:
         rows += [("facets", {"lod": lod, "po": po}) for lod in args.lods]
     print(f"walk {args.duration:g} s at 1 m/s, radars 3 m away at azimuths {WALK_AZIMUTHS_DEG} deg, 1.1 m up")

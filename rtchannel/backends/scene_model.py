@@ -210,6 +210,7 @@ def adaptive_frames(times: np.ndarray, velocities: np.ndarray, probe: tuple, sou
         raise InputError(f"trace_max_gap_s must be positive, got {max_gap_s}")
     if step_m is not None:
         return adaptive_trace_indices(times, fastest_speed(velocities), step_m, max_gap_s)
+    assert step_deg is not None  # exactly one of the two (checked above)
     rate = aspect_rate_deg_s(times, probe[0], probe[1], sources)
     return adaptive_trace_indices(times, rate, step_deg, max_gap_s, name="trace_step_deg")
 

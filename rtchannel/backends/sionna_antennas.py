@@ -6,15 +6,16 @@ Transmitter/Receiver turns that frame by its own (yaw, pitch, roll). `processing
 local frame, so a project pattern becomes a Sionna pattern by evaluating `local_power_gain` with Dr.Jit
 operations: the antenna's polarisation (`polarization`, Sionna's spelling: "V", slant angle 0, C_theta =
 sqrt(G) and C_phi = 0 exactly; "H", slant angle pi/2, C_phi = sqrt(G) and C_theta = 0) on the array
-(`PlanarArray(polarization=...)`, which hands it to the pattern factory). Then |a|^2 carries G_tx(u_tx) G_rx(u_rx) on top of the unit-gain scale, with u_tx the
-direction in which each path leaves the transmitter and u_rx the one from which it reaches the receiver
-(Sionna's first and last path segments: exact for every depth and for wall-bounce paths).
+(`PlanarArray(polarization=...)`, which hands it to the pattern factory). Then |a|^2 carries G_tx(u_tx) G_rx(u_rx)
+on top of the unit-gain scale, with u_tx the direction in which each path leaves the transmitter and u_rx the one
+from which it reaches the receiver (Sionna's first and last path segments: exact for every depth and for wall-bounce
+paths).
 
 Limits of Sionna RT 2.2: the scene holds ONE transmit and ONE receive array for all devices (orientations
 are per device). Links whose antennas differ in shape or polarisation (not only in orientation) are therefore
-traced in separate solver calls, one per distinct (tx shape, rx shape, polarisation); the seed's kit (one horn everywhere) and the
-isotropic case need one call. Isotropic antennas keep Sionna's own "iso" pattern with orientation (0, 0, 0):
-bit for bit the unit-gain behaviour of the backend.
+traced in separate solver calls, one per distinct (tx shape, rx shape, polarisation); the seed's kit (one horn
+everywhere) and the isotropic case need one call. Isotropic antennas keep Sionna's own "iso" pattern with
+orientation (0, 0, 0): bit for bit the unit-gain behaviour of the backend.
 """
 from __future__ import annotations
 
@@ -63,7 +64,9 @@ def register_pattern(spec) -> str:
 
     def v_pattern(theta, phi):
         # sqrt(G): the amplitude pattern; the power gain is finite and > 0 everywhere (floor), no NaN.
-        return mi.Complex2f(dr.sqrt(local_power_gain(spec, theta, phi, ops)), 0.0)
+        # (Mitsuba's stubs type the variant classes, Complex2f among them, as object: the variant is chosen at
+        # run time.)
+        return mi.Complex2f(dr.sqrt(local_power_gain(spec, theta, phi, ops)), 0.0)  # type: ignore[operator]
 
     def factory(*, polarization="V", polarization_model="tr38901_2"):
         return PolarizedAntennaPattern(v_pattern=v_pattern, polarization=polarization,
@@ -89,7 +92,8 @@ def link_groups(radar, links) -> list[list]:
 def _orientation(spec, position) -> tuple[float, float, float]:
     if spec is None or spec.kind == "isotropic":
         return (0.0, 0.0, 0.0)  # today's unit-gain devices: no rotation, bit-identical fields
-    return tuple(float(a) for a in sionna_orientation(spec, position))
+    yaw, pitch, roll = (float(a) for a in sionna_orientation(spec, position))
+    return (yaw, pitch, roll)
 
 
 def place_antennas(scene, links, radar=None) -> tuple[dict[str, tuple[int, int]], np.ndarray]:

@@ -42,6 +42,8 @@ Choices (measured numbers in scenes/README.md):
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from processing.pathset import PathSet
@@ -68,7 +70,7 @@ class _Tracer:
 
     def __call__(self, scene, samples_per_src: int, max_depth: int, specular: bool, diffuse: bool,
                  refraction: bool, diffraction: bool, seed: int, pad_bucket: int,
-                 max_num_paths_per_src: int) -> dict[str, np.ndarray]:
+                 max_num_paths_per_src: int) -> dict[str, Any]:
         import drjit as dr
         import mitsuba as mi
 
@@ -99,6 +101,7 @@ class _Tracer:
         buf.schedule()
         dr.eval()
         a = buf.a[0][0]
+        out: dict[str, Any]  # arrays, and the path count found
         out = {"valid": np.array(buf.valid, dtype=bool), "src": np.array(buf.source_indices, dtype=np.int64),
                "tgt": np.array(buf.target_indices, dtype=np.int64),
                "a": np.array(dr.real(a), np.float64) + 1j * np.array(dr.imag(a), np.float64),

@@ -6,7 +6,7 @@ units; the Lambertian diffuse + PO gains and the wall factors run through their 
 Common scale (Sionna RT's path-coefficient convention, isotropic unit-gain antennas): a path with
 radar cross-section sigma at distances r_tx, r_rx has |a|^2 = P_r / P_t, i.e.
 
-    |a| = lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx)                         (`processing.radar.propagation.path_amplitude`)
+    |a| = lambda sqrt(sigma) / ((4 pi)^1.5 r_tx r_rx)            (`processing.radar.propagation.path_amplitude`)
 
 Diffuse model (Sionna RT EM primer, "Scattering", after Degli-Esposti 2007/2011): the field scattered by
 a surface element dA towards k_s is |E_s| = S Gamma sqrt(f_s(k_i, k_s) cos(theta_i) dA) |E_i| / r_s,
@@ -17,7 +17,8 @@ isotropic receiver this is a radar cross-section per element
     sigma_d = 4 pi S^2 Gamma^2 f_s cos(theta_i) dA       (Lambertian: 4 S^2 Gamma^2 cos(theta_i) cos(theta_s) dA)
 
 whose amplitude is real and positive (Sionna's diffuse Jones matrix has no phase besides propagation).
-Summed in power over a body this gives the closed forms `lambertian_sphere_rcs` and `lambertian_plate_rcs` (`processing.radar.propagation`).
+Summed in power over a body this gives the closed forms `lambertian_sphere_rcs` and `lambertian_plate_rcs`
+(`processing.radar.propagation`).
 The diffuse model defines a power, not a phase: a rough surface's diffuse field has a random phase per
 resolution cell, so `facet_gains` multiplies each element's diffuse amplitude by a fixed random phase
 factor (`diffuse_phases`); the expected coherent power of a sum of elements is then its power sum, the
@@ -252,7 +253,12 @@ def diffuse_sqrt_rcs(mat: SurfaceMaterial, k_i, k_s, normal, area, gamma,
     (`SurfaceMaterial.scattering_at`; `wavelength` [m] needed then)."""
     cos_i = np.clip(-np.einsum("...i,...i->...", normal, k_i), 0.0, 1.0)
     f_s = scattering_pattern(mat, k_i, k_s, normal)
-    s = mat.scattering_coefficient if mat.roughness_m is None else mat.scattering_at(cos_i, wavelength)
+    if mat.roughness_m is None:
+        s = mat.scattering_coefficient
+    elif wavelength is None:
+        raise ValueError("diffuse_sqrt_rcs: a rough material needs the wavelength")
+    else:
+        s = mat.scattering_at(cos_i, wavelength)
     return s * gamma * np.sqrt(4 * np.pi * (1 - mat.xpd_coefficient) * f_s * cos_i * np.maximum(area, 0.0))
 
 

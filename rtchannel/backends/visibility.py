@@ -74,7 +74,8 @@ def _facing(normals, centroids, usable, sources):
     in numpy einsum's order."""
     n_b, n_f = usable.shape
     size = sources.shape[0] * n_b * n_f
-    at, ss, bs, fs = np.empty(size, np.int64), np.empty(size, np.int64), np.empty(size, np.int64), np.empty(size, np.int64)
+    at, ss = np.empty(size, np.int64), np.empty(size, np.int64)
+    bs, fs = np.empty(size, np.int64), np.empty(size, np.int64)
     n = 0
     for s in range(sources.shape[0]):
         p = sources[s]
@@ -161,7 +162,7 @@ def batch_visibility(caster, centroids, normals, usable, sources, walls, pairs, 
                         np.cumsum([b.size for _, b, _ in parts])[:-1])
         for (s, b, f), ok in zip(parts, free):
             direct[s, b[ok], f[ok]] = True
-    images = {}
+    images: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     if not walls:
         return BatchVisibility(direct, images)
     needed = np.zeros_like(direct)
@@ -227,6 +228,9 @@ class FrameBatchCaster:
             cheaper BVH updates) when it is available; False: through Mitsuba.
     """
 
+    lo: np.ndarray  # the box [3] (m) `caster_for` checks a motion against, set by it
+    hi: np.ndarray
+
     def __init__(self, static, faces: np.ndarray, n_vertices: int, bounds, batch: int = 16, embree: bool = True):
         from rtchannel.backends import embree as _embree
         from rtchannel.scene.llvm import import_mitsuba
@@ -248,7 +252,7 @@ class FrameBatchCaster:
             cells = (np.concatenate([sv + o for o in self.offsets]),
                      np.concatenate([sf + len(sv) * i for i in range(batch)]))
         if embree and _embree.available():  # the same Embree, without Mitsuba's per-update overhead
-            self._embree = _embree.EmbreeScene(cells, body_faces, batch * n_vertices)
+            self._embree: _embree.EmbreeScene | None = _embree.EmbreeScene(cells, body_faces, batch * n_vertices)
             return
         self._embree = None
         shapes = {"type": "scene", "body": self._mesh("body", np.zeros((batch * n_vertices, 3)), body_faces)}

@@ -75,11 +75,21 @@ class BodyShape(BaseModel):
         return data
 
     def bmi_at(self, stature_m: float) -> float:
-        """The BMI [kg/m^2] of this body at stature `stature_m` (its `bmi`, or mass / stature^2)."""
-        return float(self.bmi) if self.bmi is not None else float(self.mass_kg) / float(stature_m) ** 2
+        """The BMI [kg/m^2] of this body at stature `stature_m` (its `bmi`, or mass / stature^2).
+
+        Args:
+            stature_m: the person's stature [m].
+        """
+        if self.bmi is not None:
+            return float(self.bmi)
+        assert self.mass_kg is not None  # the validator sets bmi when mass_kg is not given
+        return float(self.mass_kg) / float(stature_m) ** 2
 
     def macro(self, stature_m: float) -> MacroValues:
         """MakeHuman's macro values of this body at stature `stature_m` (`rtchannel.body.shape_fit.fit_macro`).
+
+        Args:
+            stature_m: the person's stature [m].
 
         Raises:
             InputError: the BMI at this stature is beyond the shape model (also for a mass whose BMI is
@@ -92,13 +102,21 @@ class BodyShape(BaseModel):
         return fit_macro(self.sex, self.age_years, bmi, self.muscle, self.proportions, float(stature_m))
 
     def key(self, stature_m: float) -> tuple:
-        """The rig shape key: this shape's fields and its MakeHuman macro values at `stature_m`."""
+        """The rig shape key: this shape's fields and its MakeHuman macro values at `stature_m`.
+
+        Args:
+            stature_m: the person's stature [m].
+        """
         own = tuple((k, v) for k, v in self.model_dump().items())
         return own + macro_key(self.macro(stature_m))
 
     @classmethod
     def from_key(cls, key: tuple) -> "BodyShape":
-        """The shape a rig shape key was made from."""
+        """The shape a rig shape key was made from.
+
+        Args:
+            key: a rig shape key (`BodyShape.key`): a tuple of (name, value) pairs.
+        """
         return cls.model_validate({k: v for k, v in key if k in cls.model_fields})
 
 
@@ -140,7 +158,12 @@ class BodyShapeRanges(BaseModel):
 def draw_body_shape(rng: np.random.Generator, ranges: BodyShapeRanges | dict | None = None) -> BodyShape:
     """A body shape drawn from `ranges` (a `BodyShapeRanges` or its dict; default `BodyShapeRanges()`) with
     the numpy generator `rng`: sex, then age, BMI, muscle and proportions, uniform within their ranges (five
-    uniform draws, always in this order, so a seeded generator gives the same shape)."""
+    uniform draws, always in this order, so a seeded generator gives the same shape).
+
+    Args:
+        rng: the numpy random generator to draw from.
+        ranges: the ranges (`BodyShapeRanges`, its dict, or None for the documented defaults).
+    """
     r = ranges if isinstance(ranges, BodyShapeRanges) else BodyShapeRanges.model_validate(ranges or {})
     u = rng.random(5)
 

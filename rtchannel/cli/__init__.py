@@ -107,4 +107,5 @@ def run(argv: list[str] | None = None) -> int:
     return rc
 
 
-__all__ = ["main", "run", "build_parser", "UserError", "EXIT_USAGE", "EXIT_BUG", "DEBUG_ENV", "USER_ERRORS", "FAST_EXIT_COMMANDS"]
+__all__ = ["main", "run", "build_parser", "UserError", "EXIT_USAGE", "EXIT_BUG", "DEBUG_ENV", "USER_ERRORS",
+           "FAST_EXIT_COMMANDS"]

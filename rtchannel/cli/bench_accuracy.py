@@ -30,7 +30,8 @@ def _activities(args) -> tuple[str, ...]:
     acts = tuple(a.strip() for a in args.activities.split(",") if a.strip())
     bad = [a for a in acts if a not in ACTIVITIES]
     if bad or not acts:
-        raise UserError(f"--activities: unknown activity {bad[0] if bad else ''!r}; choose from {', '.join(ACTIVITIES)}")
+        raise UserError(f"--activities: unknown activity {bad[0] if bad else ''!r}; "
+                        f"choose from {', '.join(ACTIVITIES)}")
     return acts
 
 

@@ -87,9 +87,10 @@ def add_compare(sub) -> None:
                        description="Simulate procedural activities through two or more backends and write the "
                        "seed's Table I between the first backend and each other one (normalised DTW of mean "
                        "radial velocities for every activity pair), per-activity p(v,t) total-variation and "
-                       "mean-velocity RMSE, and a side-by-side PNG of p(v,t). With --real: simulated signatures (--sim or "
-                       "--data) against real spectrogram images instead, rows simulated, columns real.")
-    p.add_argument("--backends", nargs="+", default=["points", "facets"], help="backends, space- or comma-separated (default points facets)")
+                       "mean-velocity RMSE, and a side-by-side PNG of p(v,t). With --real: simulated signatures "
+                       "(--sim or --data) against real spectrogram images instead, rows simulated, columns real.")
+    p.add_argument("--backends", nargs="+", default=["points", "facets"],
+                   help="backends, space- or comma-separated (default points facets)")
     p.add_argument("--activities", nargs="+", default=list(ACTIVITIES), help="activities (default all five)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--option", action="append", metavar="BACKEND.NAME=VALUE",

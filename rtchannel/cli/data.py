@@ -19,9 +19,9 @@ def add_data(sub) -> None:
 
 def _selected(patterns: list[str]):
     from rtchannel.cli.common import UserError
-    from rtchannel.data_registry import entries
+    from rtchannel.data_registry import Entry, entries
 
-    chosen = {}
+    chosen: dict[str, Entry] = {}
     for pat in patterns:
         found = entries(pat)
         if not found:

@@ -46,7 +46,8 @@ def cmd_dataset(args) -> int:
     from rtchannel.errors import InputError
 
     try:
-        plan, items = plan_dataset(args.config, backend=args.backend, fetch=not args.dry_run)  # counting downloads nothing
+        # counting downloads nothing
+        plan, items = plan_dataset(args.config, backend=args.backend, fetch=not args.dry_run)
     except ValidationError as e:
         raise UserError(validation_line(e, f"plan {args.config}")) from None
     except InputError as e:
@@ -85,8 +86,8 @@ def cmd_dataset(args) -> int:
     rate = 60.0 * s.done_now / s.seconds if s.seconds > 0 else 0.0
     print(f"{args.out}: {s.done_before + s.done_now}/{s.total} items done ({s.done_now} now, {rate:.0f} items/min "
           f"on {s.workers} worker(s)), {len(s.failed)} failed")
-    for e in s.failed[:5]:
-        print(f"failed {e['item_id']}: {e['error']}")
+    for entry in s.failed[:5]:
+        print(f"failed {entry['item_id']}: {entry['error']}")
     return 0 if s.complete else 1
 
 
@@ -117,8 +118,8 @@ def _info(root) -> int:
           f"({', '.join(health['bad_shards'][:3])})" if health["bad_shards"] else ""))
     if health["missing_from_index"]:
         n = health["missing_from_index"]
-        print(f"  {n} item{'s' if n > 1 else ''} in the shards {'are' if n > 1 else 'is'} not in the index: run the same "
-              "`rtchannel dataset` command again to resume, which rebuilds the index from the shards")
+        print(f"  {n} item{'s' if n > 1 else ''} in the shards {'are' if n > 1 else 'is'} not in the index: run the "
+              "same `rtchannel dataset` command again to resume, which rebuilds the index from the shards")
     if bad and not damage:
         damage.append(f"{root / 'index.jsonl'}: {len(bad)} unreadable line{'s' if len(bad) > 1 else ''} (first: line "
                       f"{bad[0]}; a run killed while writing leaves its last line torn: run it again to resume)")

@@ -14,7 +14,8 @@ def add_render(sub) -> None:
                        "(Mitsuba, the ray tracer's own renderer), plus an animation strip of the activity.")
     add_motion_args(p)
     p.add_argument("--out", required=True, type=Path, help="scene PNG to write")
-    p.add_argument("--strip", type=Path, help="also write an animation strip (.png) or animation (.gif); other extensions are refused")
+    p.add_argument("--strip", type=Path,
+                   help="also write an animation strip (.png) or animation (.gif); other extensions are refused")
     p.add_argument("--frames", type=int, nargs="+", help="frame indices (default: 5 evenly spaced)")
     add_radar_args(p)
     p.add_argument("--lod", default="10k", help="avatar level of detail: full, 10k, 5k, 2k (default 10k)")
@@ -46,7 +47,9 @@ def cmd_render(args) -> int:
 
     scene = scene_with_chair(Scene(args.scene), motion, args.chair)
     scene.xml_path()  # a missing scene is a one-line user error before any rendering
-    print(f"wrote {render_scene(motion, frames, antennas, args.out, lod=args.lod, scene=scene, frequency_hz=radar.waveform.carrier_hz)}")
+    png = render_scene(motion, frames, antennas, args.out, lod=args.lod, scene=scene,
+                       frequency_hz=radar.waveform.carrier_hz)
+    print(f"wrote {png}")
     if args.strip:
         print(f"wrote {render_strip(motion, args.strip, radar_positions=antennas)}")
     return 0

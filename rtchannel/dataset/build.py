@@ -13,7 +13,8 @@ from rtchannel.dataset.plan import Plan, WorkItem, expand, load_plan
 from rtchannel.dataset.runner import RunSummary, run_plan
 
 
-def plan_dataset(plan: str | Path | Plan, *, backend: str | None = None, fetch: bool = True) -> tuple[Plan, list[WorkItem]]:
+def plan_dataset(plan: str | Path | Plan, *, backend: str | None = None,
+                 fetch: bool = True) -> tuple[Plan, list[WorkItem]]:
     """(validated plan, its work items) without running anything (what ``--dry-run`` counts).
 
     Args:

@@ -14,8 +14,10 @@ import fnmatch
 import hashlib
 import itertools
 import json
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
@@ -135,6 +137,7 @@ def _draw(value, rng: np.random.Generator):
 def _motion_files(src: Source, fetch: bool = True) -> list[Path]:
     """The motion files of a `files` source, sorted. ``data:PREFIX`` names registered third-party files
     (fetched through `rtchannel.data_registry`; with `fetch` False only counted, nothing downloaded)."""
+    assert src.files is not None  # a files source (Source._one_kind)
     if src.files.startswith(DATA_PREFIX):
         return _registry_files(src, fetch)
     root = Path(src.files)
@@ -151,6 +154,7 @@ def _motion_files(src: Source, fetch: bool = True) -> list[Path]:
 def _registry_files(src: Source, fetch: bool) -> list[Path]:
     from rtchannel import data_registry
 
+    assert src.files is not None  # a files source (Source._one_kind)
     prefix = src.files[len(DATA_PREFIX):].rstrip("/")
     pattern = src.pattern[3:] if src.pattern.startswith("**/") else src.pattern  # '**/*' = anything below
     chosen = []
@@ -170,12 +174,14 @@ def skeleton_for(motion_file: Path, spec: str, fetch: bool = True) -> Path:
     """The ASF skeleton of an AMC `motion_file`: `spec` names the file, or a folder (``data:`` prefix or local)
     whose ASF with the longest name that starts the AMC's name is taken (HDM05: HDM_bd.asf for
     HDM_bd_depositFloorR_001_120.amc), so one source can hold several actors' takes."""
+    cands: dict[str, str | Path]
+    get: Callable[[Any], Path]
     if spec.startswith(DATA_PREFIX):
         from rtchannel import data_registry
 
         rels = [e.path for e in data_registry.entries(spec[len(DATA_PREFIX):]) if e.path.lower().endswith(".asf")]
         cands = {Path(r).stem: r for r in rels}
-        get = data_registry.fetch if fetch else Path
+        get = (lambda r: data_registry.fetch(str(r))) if fetch else Path
     else:
         p = Path(spec)
         if p.is_file():
@@ -193,6 +199,7 @@ def _labelled_files(src: Source, fetch: bool = True) -> list[tuple[Path, str]]:
     registry prefix the source names (the file name for a single file). Without `fetch`, registered files
     keep their registry paths (nothing is downloaded)."""
     files = _motion_files(src, fetch)
+    assert src.files is not None  # a files source (Source._one_kind)
     if src.files.startswith(DATA_PREFIX):
         prefix = src.files[len(DATA_PREFIX):].rstrip("/")
         regs = _registry_files(src, fetch=False)
@@ -203,8 +210,10 @@ def _labelled_files(src: Source, fetch: bool = True) -> list[tuple[Path, str]]:
 
 def _motion_variants(plan: Plan, fetch: bool = True) -> list[tuple[str, str, str, str, dict]]:
     """(motion id, activity, group, source label, base motion dict) per source variant."""
-    out = []
+    out: list[tuple[str, str, str, str, dict]] = []
+    base: dict[str, Any]
     for si, src in enumerate(plan.motion.sources):
+        act: str | None
         if src.procedural is not None:
             act = src.procedural
             for v in range(src.variants):
@@ -308,7 +317,8 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
             draws_physical = any(x is not None for x in (ph.downtilt_deg, ph.hpbw_el_deg, ph.distance_m, ph.height_m))
             motion_items = []
             for pi, ((angle, direction), wf, ls) in enumerate(phys_axes):
-                links, ant = ls.links, {}
+                links = ls.links
+                ant: dict[str, float | str] = {}
                 if draws_physical:  # own stream: other draws unchanged
                     arng = np.random.default_rng(derive_seed(plan.seed, f"antenna:{motion_id}-p{pi}"))
                     ant = {key: float(_draw(getattr(ph, key), arng))
@@ -349,9 +359,9 @@ def expand(plan: Plan, fetch: bool = True) -> list[WorkItem]:
         from rtchannel.accuracy import table_for
         from rtchannel.radar import RadarConfig
 
-        for wf in {json.dumps(it.radar["waveform"], sort_keys=True): it for it in items}.values():
+        for item in {json.dumps(it.radar["waveform"], sort_keys=True): it for it in items}.values():
             try:
-                table_for(RadarConfig.model_validate(wf.radar), plan.calibration)
+                table_for(RadarConfig.model_validate(item.radar), plan.calibration)
             except ValueError as e:
                 raise ConfigError(f"plan {plan.name!r}: accuracy: {e}") from None
     return items

@@ -46,12 +46,13 @@ def check_sources(plan: Plan, where: str) -> SourceCheck:
     """
     from rtchannel.motion.augment import trim as trim_motion
     from rtchannel.motion.load import load_motion
+    from rtchannel.motion.pose import Motion
 
     ml = plan.motion
     check_starts_in_room(plan, where)
     heights = [h if not isinstance(h, tuple) else h[0] for h in ml.heights]
     height = None if None in heights else heights[0]
-    loaded: dict[str, object] = {}
+    loaded: dict[str, Motion] = {}
     out = SourceCheck()
     for si, src in enumerate(ml.sources):
         if src.files is None:
@@ -69,6 +70,7 @@ def check_sources(plan: Plan, where: str) -> SourceCheck:
             if local is None:
                 out.not_local += 1
                 continue
+            assert src.activity is not None  # a files source has one (Source._one_kind)
             activity = f.parent.name if src.activity == "from_folder" else src.activity
             key = json.dumps([str(local), sorted((k, str(v)) for k, v in options.items())])
             try:

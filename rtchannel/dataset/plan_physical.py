@@ -206,7 +206,8 @@ class PhysicalLayer(_Model):
         from rtchannel.radar import RadarConfig
 
         r = RadarConfig.glasgow(height_m=links[0].tx_pos[2], distance_m=2.5)  # boresight at the antenna height
-        return {"antenna": r.antenna.model_dump(mode="json"), "receiver": r.receiver.model_dump(mode="json")}
+        return {"antenna": r.antenna.model_dump(mode="json"),
+                "receiver": None if r.receiver is None else r.receiver.model_dump(mode="json")}
 
     @model_validator(mode="after")
     def _angles(self) -> "PhysicalLayer":
@@ -253,5 +254,5 @@ class PhysicalLayer(_Model):
         """(rotation angle [deg], seed direction or None) per physical direction."""
         if self.angles_deg is not None:
             return [(float(a), None) for a in self.angles_deg]
-        dirs = list(range(1, 19)) if self.directions in (None, "seed") else self.directions
+        dirs = self.directions if isinstance(self.directions, list) else list(range(1, 19))  # None or "seed": all
         return [(direction_angles(d)[0], d) for d in dirs]

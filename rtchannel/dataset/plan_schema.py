@@ -11,6 +11,7 @@ from typing import Any, Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from processing.errors import InputError, one_line
+from processing.labels import Activity
 from rtchannel.body.scatterers import SCATTERER_NAMES
 from rtchannel.dataset.plan_fields import _NAME, Scalar, _Model, _per_activity, _within, for_activity, unique_names  # noqa: F401
 from rtchannel.body.shape import BodyShapeRanges
@@ -29,7 +30,7 @@ _RESERVED_PROC = {"height", "heading_deg", "start", "seed", "fps"}
 class Source(_Model):
     """One motion source: a procedural generator (``procedural: walk``) or motion files (``files: PATH``)."""
 
-    procedural: Literal[ACTIVITIES] | None = Field(None, description="activity of a procedural generator")
+    procedural: Activity | None = Field(None, description="activity of a procedural generator")
     variants: int = Field(1, ge=1, le=100000, description="procedural: number of generator seeds (motions)")
     params: dict[str, Scalar] = Field(default_factory=dict,
                                       description="procedural: ProceduralParams values or [low, high] ranges")
@@ -89,7 +90,7 @@ class MotionLayer(_Model):
                                              "joined by turns on the spot (rtchannel.motion.compose.back_and_forth)")
     walk_reverse: float = Field(0.0, ge=0, le=1, description="probability that a walk is turned 180 deg (starts "
                                 "walking away from where it would walk toward), drawn per motion")
-    unscaled: list[Literal[ACTIVITIES]] = Field(default_factory=list, description="activities time_scales do "
+    unscaled: list[Activity] = Field(default_factory=list, description="activities time_scales do "
                                                   "not apply to (e.g. walks, whose pace is their generator's "
                                                   "speed, and falls, driven by gravity, not by the person's pace)")
     walk_turn_s: Scalar = Field(0.8, description="duration of one turn between walk legs [s] (or a range)")
@@ -301,7 +302,7 @@ class Plan(_Model):
     def _image_clips(self) -> "Plan":
         if self.storage.image_layout == "glasgow":
             clips = self.motion.clip_s
-            acts = {s.procedural or s.activity for s in self.motion.sources}
+            acts = {a for a in (s.procedural or s.activity for s in self.motion.sources) if a is not None}
             missing = sorted(a for a in acts if clips.get(a, clips.get("*")) not in (5.0, 10.0))
             if missing:
                 raise InputError(f"storage.image_layout glasgow: motion.clip_s must give {missing[0]} a length of "

@@ -4,8 +4,8 @@ A plan is user input that drives hours of work, so it is refused (one `ConfigErr
 and the line or field) before anything is expanded:
 
 * the text (`rtchannel.safe_yaml`): at most `MAX_PLAN_BYTES`, UTF-8, valid YAML (errors give the line), at
-  most `MAX_DEPTH` levels of nesting, and at most `MAX_YAML_NODES` values *after* alias expansion. The size is counted on
-  the composed node graph (each anchored node's expanded size is computed once), so a "billion laughs"
+  most `MAX_DEPTH` levels of nesting, and at most `MAX_YAML_NODES` values *after* alias expansion. The size is
+  counted on the composed node graph (each anchored node's expanded size is computed once), so a "billion laughs"
   alias bomb is refused in microseconds without ever being expanded; a recursive alias is refused too.
   Aliases themselves stay allowed (a plan may reuse a link set);
 * `backend_options`: every value a finite scalar (str, int, float, bool or null): backends take single
@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from rtchannel.errors import ConfigError
 from rtchannel.safe_yaml import MAX_DEPTH, MAX_YAML_NODES, read_yaml_mapping  # noqa: F401 - re-exported
@@ -61,7 +62,7 @@ def axis_lengths(plan, files_per_source: Callable[[object], int]) -> dict[str, i
             "signal.snr_db": len(sg.snr_db), "signal.clutter": len(sg.clutter)}
 
 
-def count_items(plan, files_per_source: Callable[[object], int], where: str) -> int:
+def count_items(plan, files_per_source: Callable[[Any], int], where: str) -> int:
     """Number of work items of `plan`, counted from the axis lengths (nothing is expanded).
 
     Raises `ConfigError` (prefixed with `where`) when an axis is empty (the plan would give no items) or

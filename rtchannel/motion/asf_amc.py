@@ -224,6 +224,7 @@ def read_amc(path, skel: Skeleton) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     need = {b for b, bone in skel.bones.items() if bone.dof} | {"root"}
     frames: list[dict[str, list[float]]] = []
     starts: list[int] = []  # line of each frame's number
+    first = 1  # the first frame's number (the file's own, set when it is read)
 
     def complete(k: int, at_end: bool = False) -> None:
         lacking = sorted(need - frames[k].keys())
@@ -280,19 +281,19 @@ def read_amc(path, skel: Skeleton) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         factor = 180.0 / np.pi if skel.degrees else np.pi / 180.0
     else:
         factor = 1.0
-    root = []
-    values = {b: [] for b in skel.bones}
+    root_rows = []
+    values: dict[str, list[list[float]]] = {b: [] for b in skel.bones}
     for fr in frames:  # complete and of the right counts (checked above); bones without dof give []
-        root.append(fr["root"])
+        root_rows.append(fr["root"])
         for b in skel.bones:
             values[b].append(fr.get(b, []))
-    root = np.asarray(root, float).reshape(len(frames), len(skel.root_order))
+    root = np.asarray(root_rows, float).reshape(len(frames), len(skel.root_order))
     rot_cols = [i for i, c in enumerate(skel.root_order) if c.startswith("R")]
     root[:, rot_cols] *= factor
     out = {}
-    for b, bone in skel.bones.items():
-        arr = np.asarray(values[b], float).reshape(len(frames), len(bone.dof))
-        rot = [i for i, d in enumerate(bone.dof) if d.startswith("r")]
+    for b, spec in skel.bones.items():
+        arr = np.asarray(values[b], float).reshape(len(frames), len(spec.dof))
+        rot = [i for i, d in enumerate(spec.dof) if d.startswith("r")]
         arr[:, rot] *= factor
         out[b] = arr
     max_angle = MAX_ANGLE_DEG if skel.degrees else np.radians(MAX_ANGLE_DEG)

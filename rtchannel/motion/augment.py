@@ -138,4 +138,4 @@ def augment(motion: Motion, *, height=None, time_scale=1.0, mirror=False, headin
 def _jsonable(v):
     if v is None or isinstance(v, (bool, np.bool_)):
         return None if v is None else bool(v)
-    return float(v) if np.isscalar(v) else [float(x) for x in v]
+    return float(v) if np.ndim(v) == 0 else [float(x) for x in v]

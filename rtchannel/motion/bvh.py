@@ -70,7 +70,9 @@ def _parse_hierarchy(path: Path, lines: list[str], motion_at: int) -> dict:
     """Joints (depth-first), parents, offsets [J, 3], channels, end sites of the HIERARCHY section."""
     tk = _Tokens(path, lines, motion_at)
     tk.expect("HIERARCHY")
-    names, parents, offsets, channels, ends, lines_of = [], [], [], [], {}, {}
+    names: list[str] = []
+    lines_of: dict[str, int] = {}
+    parents, offsets, channels, ends = [], [], [], {}
     stack: list[int] = []  # open joints
 
     def offset(owner: str) -> list[float]:
@@ -170,7 +172,8 @@ def _motion_header(path: Path, lines: list[str], motion_at: int) -> tuple[int, f
     return n, dt, i_time + 1
 
 
-def _parse_frames(path: Path, lines: list[str], first: int, n_frames: int, n_channels: int) -> tuple[np.ndarray, np.ndarray]:
+def _parse_frames(path: Path, lines: list[str], first: int, n_frames: int,
+                  n_channels: int) -> tuple[np.ndarray, np.ndarray]:
     """Channel data [F, C] and the 1-based line number of each frame."""
     rows = [i for i in range(first, len(lines)) if lines[i].strip()]
     if n_frames * max(n_channels, 1) > MAX_VALUES:
@@ -367,7 +370,10 @@ def write_bvh(motion: Motion, path, *, units: str = "cm") -> None:
     Local rotations are ``R_parent^T R_j`` (rest-relative, in the world-aligned rest frame), written as
     ZYX intrinsic Euler angles; end sites are the bone tails. Units: "m", "cm" or "mm".
     """
-    s = 1.0 / parse_units(units)
+    per_unit = parse_units(units)
+    if per_unit is None:  # parse_units(None) means "not given": a written file needs a unit
+        raise InputError("write_bvh: units must be given (m, cm or mm)")
+    s = 1.0 / per_unit
     to_file = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # inverse of the y-up import rotation
     rig = motion.rig
     rest = rig.rest @ to_file.T * s

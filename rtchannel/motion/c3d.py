@@ -86,7 +86,8 @@ try:
     units = str(point["UNITS"]["value"][0]) if "UNITS" in point and len(point["UNITS"]["value"]) else ""
     stated = int(point["FRAMES"]["value"][0]) if "FRAMES" in point and len(point["FRAMES"]["value"]) else -1
     np.savez(sys.argv[2], points=np.asarray(c["data"]["points"], dtype=float),
-             rate=float(c["header"]["points"]["frame_rate"]), labels=np.array([str(x) for x in point["LABELS"]["value"]], dtype=str),
+             rate=float(c["header"]["points"]["frame_rate"]),
+             labels=np.array([str(x) for x in point["LABELS"]["value"]], dtype=str),
              units=units, residuals=np.asarray(c["data"]["meta_points"]["residuals"], dtype=float), stated=stated)
 except MemoryError:
     print("MemoryError: the file asks for more memory than allowed")
@@ -112,7 +113,8 @@ def _read_c3d_isolated(path: Path) -> dict:
             proc = subprocess.run([sys.executable, "-c", _CHILD, str(path), str(out), str(C3D_CHILD_MEMORY)],
                                   capture_output=True, text=True, timeout=C3D_CHILD_TIMEOUT_S, env=env)
         except subprocess.TimeoutExpired:
-            raise MotionImportError(path, f"not a readable C3D file (parsing took over {C3D_CHILD_TIMEOUT_S:.0f} s)") from None
+            raise MotionImportError(path, "not a readable C3D file (parsing took over "
+                                    f"{C3D_CHILD_TIMEOUT_S:.0f} s)") from None
         if proc.returncode != 0 or not out.is_file():
             why = proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else (
                 f"the C3D parser crashed (signal {-proc.returncode})" if proc.returncode < 0
@@ -230,7 +232,12 @@ def _frame_xy(x, y_hint):
 
 def joint_centres(m: dict[str, np.ndarray]) -> tuple[dict, dict]:
     """Virtual joints [F, 3] and segment frames [F, 3, 3] from markers already in metres, z up."""
-    mid = lambda *n: sum(m[k] for k in n) / len(n)  # noqa: E731
+    def mid(*names: str) -> np.ndarray:
+        total = m[names[0]]
+        for k in names[1:]:
+            total = total + m[k]
+        return total / len(names)
+
     asis, psis = mid("LFWT", "RFWT"), mid("LBWT", "RBWT")
     pelvis = _frame_xy(asis - psis, m["LFWT"] - m["RFWT"])
     pw = float(np.median(np.linalg.norm(m["LFWT"] - m["RFWT"], axis=1)))
@@ -300,8 +307,9 @@ def read_c3d(path, *, units=None, up=None, max_gap_s: float = MAX_GAP_S, on_long
         scale = parse_units(unit_name)
     elif units is None and not LEG_RANGE_M[0] <= rough * scale <= LEG_RANGE_M[1]:
         raise MotionImportError(path, f"hip-to-ankle marker distance is {rough * scale:.3g} m with the file's "
-                                f"POINT:UNITS {file_units.strip()!r} (expected {LEG_RANGE_M[0]}..{LEG_RANGE_M[1]} m): "
-                                "wrong units in the file? pass units=")
+                                f"POINT:UNITS {(file_units or '').strip()!r} "
+                                f"(expected {LEG_RANGE_M[0]}..{LEG_RANGE_M[1]} m): wrong units in the file? "
+                                "pass units=")
     c = up_rotation(up_axis) * scale
     needed = {k: markers[k] @ c.T for k in required}
     check_extent(path, needed)

@@ -97,7 +97,8 @@ def _check_npz(path: Path) -> None:
     (shape, dtype), (n_shape, n_dtype) = shapes["positions"], shapes["names"]
     if len(shape) != 3 or shape[2] != 3 or dtype.kind not in "fiu":
         raise MotionImportError(path, f"positions must be numbers [frames, joints, 3], got {dtype} {list(shape)}")
-    if not (2 <= shape[0] <= MAX_SOURCE_FRAMES and 1 <= shape[1] <= MAX_JOINTS and shape[0] * shape[1] * 3 <= MAX_VALUES):
+    if not (2 <= shape[0] <= MAX_SOURCE_FRAMES and 1 <= shape[1] <= MAX_JOINTS
+            and shape[0] * shape[1] * 3 <= MAX_VALUES):
         raise MotionImportError(path, f"positions {list(shape)}: 2..{MAX_SOURCE_FRAMES} frames, 1..{MAX_JOINTS} joints "
                                 f"and at most {MAX_VALUES} values")
     if len(n_shape) != 1 or n_shape[0] != shape[1] or n_dtype.kind not in "US":
@@ -121,7 +122,8 @@ def _read(path: Path) -> tuple[dict[str, np.ndarray], float, str | None, str | N
                 units = z["units"].reshape(()).item() if "units" in z.files else None
                 up = str(z["up"].reshape(())) if "up" in z.files else None
         except (OSError, KeyError, ValueError, EOFError) as e:
-            raise MotionImportError(path, f"not a joint-position NPZ (positions, names, fps): {type(e).__name__}") from None
+            raise MotionImportError(path, "not a joint-position NPZ (positions, names, fps): "
+                                    f"{type(e).__name__}") from None
         if isinstance(units, bytes):
             units = units.decode("latin-1")
         return {n: pos[:, k] for k, n in enumerate(names)}, fps, units, up
@@ -142,7 +144,8 @@ def _read(path: Path) -> tuple[dict[str, np.ndarray], float, str | None, str | N
     joints = {}
     for k in range(1, len(header), 3):
         base = header[k].strip()
-        if not base.endswith("_x") or header[k + 1].strip() != base[:-2] + "_y" or header[k + 2].strip() != base[:-2] + "_z":
+        if (not base.endswith("_x") or header[k + 1].strip() != base[:-2] + "_y"
+                or header[k + 2].strip() != base[:-2] + "_z"):
             raise MotionImportError(path, f"columns {k + 1}-{k + 3} must be <name>_x,<name>_y,<name>_z", line=1)
         joints[base[:-2]] = data[:, k:k + 3]
     return joints, fps, None, None
@@ -173,7 +176,8 @@ def read_joint_tracks(path, *, units=None, up: str | None = None) -> SourceMotio
             joints[c] = v
     missing = [j for j in REQUIRED if j not in joints]
     if missing:
-        raise MotionImportError(path, f"joint positions lack {', '.join(missing)} (found: {', '.join(sorted(raw))[:200]})")
+        raise MotionImportError(path, f"joint positions lack {', '.join(missing)} "
+                                f"(found: {', '.join(sorted(raw))[:200]})")
     scale = parse_units(units if units is not None else file_units) or 1.0
     bad = [k for k, v in joints.items() if not np.isfinite(v).all()]
     if bad:
@@ -182,8 +186,8 @@ def read_joint_tracks(path, *, units=None, up: str | None = None) -> SourceMotio
     check_extent(path, {k: v * scale for k, v in joints.items()})  # before any arithmetic on them
     head_src = joints.get("head", joints.get("neck", 0.5 * (joints["left_shoulder"] + joints["right_shoulder"])))
     up_axis = up or file_up or guess_up(head_src, 0.5 * (joints["left_ankle"] + joints["right_ankle"]))
-    c = up_rotation(up_axis) * scale
-    j = {k: v @ c.T for k, v in joints.items()}
+    rot = up_rotation(up_axis) * scale
+    j = {k: v @ rot.T for k, v in joints.items()}
     hips = 0.5 * (j["left_hip"] + j["right_hip"])
     shoulders = 0.5 * (j["left_shoulder"] + j["right_shoulder"])
     neck = j.get("neck", shoulders)

@@ -118,7 +118,8 @@ def load_motion(path, *, fps: float | None = None, units=None, up: str | None = 
     if fps is not None and fps != motion.fps:
         check_resampled_frames(motion.duration, fps)
         motion = motion.resampled(fps)
-    motion = replace(motion, params={**motion.params, "file": str(p), "fps": float(motion.fps), "requested_height": height})
+    motion = replace(motion, params={**motion.params, "file": str(p), "fps": float(motion.fps),
+                                     "requested_height": height})
     return motion
 
 
@@ -130,8 +131,8 @@ def check_plausible(path: Path, motion: Motion, own_height: bool) -> None:
     h = motion.rig.height
     if own_height and not PLAUSIBLE_HEIGHT_M[0] <= h <= PLAUSIBLE_HEIGHT_M[1]:
         raise MotionImportError(path, f"the person would be {h:.2f} m tall (from the file's leg length), outside "
-                                f"{PLAUSIBLE_HEIGHT_M[0]:g}-{PLAUSIBLE_HEIGHT_M[1]:g} m: wrong length unit? pass units= "
-                                "(or a height)")
+                                f"{PLAUSIBLE_HEIGHT_M[0]:g}-{PLAUSIBLE_HEIGHT_M[1]:g} m: wrong length unit? "
+                                "pass units= (or a height)")
     head = motion.positions[0, motion.rig.index("Head"), 2]
     feet = max(motion.positions[0, motion.rig.index(f"{s}Foot"), 2] for s in ("Left", "Right"))
     if head - feet < HEAD_ABOVE_FEET * h:

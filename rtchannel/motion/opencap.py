@@ -68,7 +68,8 @@ def read_opencap(path, *, up: str | None = None) -> SourceMotion:
     for b in BODIES:
         if trans[b].shape != (n, 3) or euler[b].shape != (n, 3):
             raise MotionImportError(path, f"body {b}: translation and rotation must be [{n}][3]")
-        for what, v, limit, unit in (("translation", trans[b], MAX_COORD_M, "m"), ("rotation", euler[b], max_rad, "rad")):
+        for what, v, limit, unit in (("translation", trans[b], MAX_COORD_M, "m"),
+                                     ("rotation", euler[b], max_rad, "rad")):
             bad = ~(np.abs(v) <= limit).all(axis=1)  # nan compares False: caught too
             if bad.any():
                 k = int(np.argmax(bad))
@@ -102,8 +103,8 @@ def read_opencap(path, *, up: str | None = None) -> SourceMotion:
     rel = Rotation.from_matrix(np.einsum("fba,fbc->fac", frame["pelvis"], frame["torso"]))
     frames = {"pelvis": frame["pelvis"], "thorax": frame["torso"], "head": frame["torso"],
               "Lfoot": frame["calcn_l"], "Rfoot": frame["calcn_r"]}
-    for k, frac in (("lumbar1", 1 / 3), ("lumbar2", 2 / 3)):
-        frames[k] = frame["pelvis"] @ Rotation.from_rotvec(rel.as_rotvec() * frac).as_matrix()
+    for seg, frac in (("lumbar1", 1 / 3), ("lumbar2", 2 / 3)):
+        frames[seg] = frame["pelvis"] @ Rotation.from_rotvec(rel.as_rotvec() * frac).as_matrix()
     check_extent(path, pts)
     info = {"format": "opencap-json", "rig": "c3d", "units": "m", "metres_per_unit": 1.0, "up": up or "y",
             "source_frames": n, "bodies": len(bodies)}

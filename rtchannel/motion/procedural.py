@@ -75,7 +75,8 @@ class ProceduralParams(BaseModel):
     step_length: float | None = Field(None, ge=0.2, le=1.6, description="walking step length [m]")
     # bounds: a heading beyond +-10 turns or a start beyond 100 m (MAX_COORD_M, the largest capture volume)
     # is a typo, and the seed is stored as a 64-bit integer in datasets and signature files
-    heading_deg: float = Field(0.0, ge=-3600, le=3600, description="facing/travel direction, deg counter-clockwise from +x")
+    heading_deg: float = Field(0.0, ge=-3600, le=3600,
+                               description="facing/travel direction, deg counter-clockwise from +x")
     start: tuple[Annotated[float, Field(ge=-100, le=100)], Annotated[float, Field(ge=-100, le=100)]] = Field(
         (0.0, 0.0), description="start of the hips' ground projection [m]")
     seed: int = Field(0, ge=0, le=2**63 - 1, description="variation seed")

@@ -278,7 +278,8 @@ def ground(motion: Motion, percentile: float = 20.0, level: bool = True) -> tupl
             if np.radians(0.2) < abs(tilt) < np.radians(8.0):
                 from scipy.spatial.transform import Rotation
 
-                turn = Rotation.from_rotvec(tilt * np.array([-axis[1], axis[0], 0.0])).as_matrix()  # z x axis: lowers +u
+                # z x axis: lowers +u
+                turn = Rotation.from_rotvec(tilt * np.array([-axis[1], axis[0], 0.0])).as_matrix()
                 centre = np.array([*contacts[:, :2].mean(axis=0), 0.0])
                 pos = (motion.positions - centre) @ turn.T + centre
                 rot = np.einsum("ab,fjbc->fjac", turn, motion.rotations)

@@ -77,7 +77,8 @@ JOINT_MAPS: dict[str, dict] = {
                for a, b, c in (("UpLeg", "Thigh", "Shin"), ("Leg", "Shin", "Foot"), ("Shoulder", "Collar", "Shldr"),
                                ("Arm", "Shldr", "ForeArm"), ("ForeArm", "ForeArm", "Hand"), ("Hand", "Hand", "Mid1"),
                                ("FingerBase", "Mid1", "Mid2"))},
-            **{f"{S}Foot": (f"{s}Foot", f"{s}Foot/End", ("orient", f"{s}Foot")) for S, s in (("Left", "l"), ("Right", "r"))},
+            **{f"{S}Foot": (f"{s}Foot", f"{s}Foot/End", ("orient", f"{s}Foot"))
+               for S, s in (("Left", "l"), ("Right", "r"))},
             **{f"{S}HandFinger1": (f"{s}Mid2", f"{s}Mid2/End", ("orient", f"{s}Mid2"))
                for S, s in (("Left", "l"), ("Right", "r"))},
             **{f"{s.upper()}Thumb": (f"{s}Thumb1", f"{s}Thumb2", ("orient", f"{s}Thumb1")) for s in ("l", "r")},
@@ -99,9 +100,11 @@ JOINT_MAPS: dict[str, dict] = {
             **{f"{S}{a}": (f"{S}{b}", f"{S}{c}", ("orient", f"{S}{b}"))
                for S, _ in _SIDES
                for a, b, c in (("UpLeg", "UpLeg", "Leg"), ("Leg", "Leg", "Foot"), ("Foot", "Foot", "ToeBase"),
-                               ("Shoulder", "Shoulder", "Arm"), ("Arm", "Arm", "ForeArm"), ("ForeArm", "ForeArm", "Hand"))},
+                               ("Shoulder", "Shoulder", "Arm"), ("Arm", "Arm", "ForeArm"),
+                               ("ForeArm", "ForeArm", "Hand"))},
             **{f"{S}Hand": (f"{S}Hand", f"{S}HandMiddle1|{S}HandIndex1", ("orient", f"{S}Hand")) for S, _ in _SIDES},
-            **{f"{S}ToeBase": (f"{S}ToeBase", f"{S}ToeBase/End|{S}Toe_End", ("orient", f"{S}ToeBase")) for S, _ in _SIDES},
+            **{f"{S}ToeBase": (f"{S}ToeBase", f"{S}ToeBase/End|{S}Toe_End", ("orient", f"{S}ToeBase"))
+               for S, _ in _SIDES},
             "LowerBack": ("Spine", "Spine1", ("orient", "Spine")),
             "Spine": ("Spine1", "Spine2", ("orient", "Spine1")),
             "Spine1": ("Spine2", "Neck", ("orient", "Spine2")),

@@ -78,11 +78,21 @@ def procedural_seat_height(motion: Motion) -> float | None:
     return SEAT_HEIGHT_M * motion.rig.height / NOMINAL_HEIGHT_M
 
 
-def _skin(motion: Motion, lod: str) -> np.ndarray:
+# Skin that can sit on a seat: pelvis and thighs. Feet tucked under a low seat (short legs) and hands resting by
+# the hips also lie in the region under the pelvis; they would put the seat near the floor.
+_SEATING_BONES = ("Hips", "LHipJoint", "RHipJoint", "LeftUpLeg", "RightUpLeg", "LowerBack")
+
+
+def _skin(motion: Motion, lod: str) -> tuple[np.ndarray, np.ndarray]:
+    """Skinned vertices (T, V, 3) [m], and which vertices (V,) are mainly moved by a seating bone."""
     from rtchannel.body.avatar import load_avatar
     from rtchannel.body.skinning import skin_vertices
 
-    return skin_vertices(load_avatar(lod), motion)
+    avatar = load_avatar(lod)
+    dominant = np.asarray(avatar.dense_weights()).argmax(axis=1)
+    names = avatar.rig.names
+    seating = np.isin(dominant, [names.index(b) for b in _SEATING_BONES if b in names])
+    return skin_vertices(avatar, motion), seating
 
 
 def chair_for(motion: Motion, *, material: str = "wood", lod: str = "10k", back_gap: float = BACK_GAP_M,
@@ -108,7 +118,7 @@ def chair_for(motion: Motion, *, material: str = "wood", lod: str = "10k", back_
     yaw = float(np.arctan2(fwd[1], fwd[0]))
     centre = np.median(mid[seated, :2], axis=0)
     c, s = np.cos(yaw), np.sin(yaw)
-    verts = _skin(motion, lod)
+    verts, seating = _skin(motion, lod)
     rel = verts[..., :2] - centre
     x, y, z = rel[..., 0] * c + rel[..., 1] * s, -rel[..., 0] * s + rel[..., 1] * c, verts[..., 2]
     from rtchannel.motion.kinematics import NOMINAL_HEIGHT_M
@@ -116,10 +126,10 @@ def chair_for(motion: Motion, *, material: str = "wood", lod: str = "10k", back_
     k = motion.rig.height / NOMINAL_HEIGHT_M  # the pelvis search region is sized for a 1.75 m body
     if seat_height is not None:
         h, how = float(seat_height), "given"
-    elif (h := procedural_seat_height(motion)) is not None:
-        how = "the procedural generator's seat"
+    elif (drawn := procedural_seat_height(motion)) is not None:
+        h, how = drawn, "the procedural generator's seat"
     else:
-        under = ((np.abs(y) < _PELVIS_HALF_WIDTH_M * k) & (x > _PELVIS_FORE_AFT_M[0] * k)
+        under = (seating & (np.abs(y) < _PELVIS_HALF_WIDTH_M * k) & (x > _PELVIS_FORE_AFT_M[0] * k)
                  & (x < _PELVIS_FORE_AFT_M[1] * k) & (z < mid[:, None, 2]))
         lowest = np.where(under, z, np.inf).min(axis=1)[seated]
         h, how = float(np.median(lowest[np.isfinite(lowest)])), "median lowest buttock skin while seated"
@@ -170,7 +180,7 @@ def _deepest(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
 
 def chair_penetration(chair: Furniture, motion: Motion, lod: str = "10k") -> np.ndarray:
     """Per frame [F], the deepest [m] any skin vertex (avatar `lod`) lies inside the chair's boxes."""
-    return chair.penetration(_skin(motion, lod)).max(axis=1)
+    return chair.penetration(_skin(motion, lod)[0]).max(axis=1)
 
 
 def wants_chair(motion: Motion) -> bool:
@@ -184,5 +194,5 @@ CHAIR_MODES = ("auto", "none")
 DEFAULT_CHAIR = "none"
 
 
-__all__ = ["CHAIR_MODES", "DEFAULT_CHAIR", "SEATED_ACTIVITIES", "chair_for", "chair_penetration", "procedural_seat_height",
-           "seated_frames", "wants_chair"]
+__all__ = ["CHAIR_MODES", "DEFAULT_CHAIR", "SEATED_ACTIVITIES", "chair_for", "chair_penetration",
+           "procedural_seat_height", "seated_frames", "wants_chair"]

@@ -47,7 +47,8 @@ LEG_SECTION_M = 0.035
 BACK_BOTTOM_ABOVE_SEAT_M = 0.18
 BACK_TOP_ABOVE_SEAT_M = 0.47
 CHAIR_MODEL = (f"rtchannel chair v1: seat {SEAT_DEPTH_M} x {SEAT_WIDTH_M} x {SEAT_THICKNESS_M} m, legs "
-               f"{LEG_SECTION_M} m square, backrest {BACK_BOTTOM_ABOVE_SEAT_M}-{BACK_TOP_ABOVE_SEAT_M} m above the seat")
+               f"{LEG_SECTION_M} m square, backrest {BACK_BOTTOM_ABOVE_SEAT_M}-{BACK_TOP_ABOVE_SEAT_M} m above the "
+               "seat")
 MAX_MESH_TRIANGLES = 20_000  # every triangle costs ray-tracing time every frame
 MESH_SUFFIXES = (".ply", ".obj")
 # ITU-R P.2040 materials of Sionna RT 2.2 (`sionna.rt.radio_materials.itu.ITU_MATERIALS_PROPERTIES`); each is
@@ -243,7 +244,9 @@ def load_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
     mesh = trimesh.load(str(path), force="mesh", process=False)
-    v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+    if not isinstance(mesh, trimesh.Trimesh):  # force="mesh" concatenates a scene into one Trimesh
+        raise InputError(f"furniture mesh {path}: not a triangle mesh")
+    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
     if len(f) == 0 or not np.isfinite(v).all():
         raise InputError(f"furniture mesh {path}: no triangles or non-finite vertices")
     if len(f) > MAX_MESH_TRIANGLES:

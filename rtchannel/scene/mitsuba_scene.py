@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from copy import deepcopy
+from typing import Any
 
 from processing.errors import InputError
 
@@ -87,8 +88,10 @@ def rewrite_materials(xml: str) -> str:
                 thickness = float(prop.get("value", thickness))
             prop = bsdf.find("string[@name='type']")
             itu_type = prop.get("value") if prop is not None else name[4:]
+            if itu_type is None:  # Sionna's loader reads it as the material "None" and names the error
+                raise NeedsSionna("an ITU material's type has no value")
             bsdf.clear()
-            bsdf.attrib.update({"type": PLUGIN, "id": mat_id})
+            bsdf.attrib.update({"type": PLUGIN, "id": str(mat_id)})
             for tag, pname, value in (("string", _KIND, "itu-radio-material"), ("string", "type", itu_type),
                                       ("float", "thickness", str(thickness))):
                 bsdf.append(ET.Element(tag, {"name": pname, "value": value}))
@@ -129,13 +132,14 @@ def _inline_top_level_bsdfs(root) -> None:
 _REGISTERED: list = []
 
 
-def register_plugin(mi):
+def register_plugin(mi: Any):
     """Register `PLUGIN` with Mitsuba (once per process); returns its class. Its instances keep the BSDF's
     properties as `values` {name: value}."""
     if _REGISTERED:
         return _REGISTERED[0]
+    bsdf: Any = mi.BSDF  # the variant's class, known at run time only
 
-    class CapturedRadioMaterial(mi.BSDF):
+    class CapturedRadioMaterial(bsdf):
         def __init__(self, props):
             super().__init__(props)
             self.values = {k: props[k] for k in props.keys()}  # reading marks every property as used

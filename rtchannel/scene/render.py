@@ -103,7 +103,8 @@ def _scene(mi, bodies, radar_positions, camera, size, spp, floor_extent, static=
             "sampler": {"type": "independent", "sample_count": int(spp)},
         },
         "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [0.55, 0.6, 0.7]}},
-        "sun": {"type": "directional", "direction": [-0.4, 0.6, -1.0], "irradiance": {"type": "rgb", "value": [2.2, 2.1, 1.9]}},
+        "sun": {"type": "directional", "direction": [-0.4, 0.6, -1.0],
+                "irradiance": {"type": "rgb", "value": [2.2, 2.1, 1.9]}},
         "floor": {
             "type": "rectangle",
             "to_world": mi.ScalarTransform4f().translate([float(c[0]), float(c[1]), 0.0]).scale([half, half, 1.0]),
@@ -135,7 +136,8 @@ def _floor(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def render_scene(motion: Motion, frames, radar_positions, out_png, lod: str = "10k", *,
-                 size=(960, 720), spp: int = 32, camera=None, scene=None, frequency_hz: float = DEFAULT_CARRIER_HZ) -> Path:
+                 size=(960, 720), spp: int = 32, camera=None, scene=None,
+                 frequency_hz: float = DEFAULT_CARRIER_HZ) -> Path:
     """Render the skinned body at several frames (one colour each) with radars as red spheres on masts.
 
     Args:
@@ -198,7 +200,8 @@ def render_strip(motion: Motion, out, n: int = 8, lod: str = "5k", *, panel=(240
     cams = []
     for v in verts:
         c = 0.5 * (v.min(axis=0) + v.max(axis=0))
-        box = np.array([[c[0] - size[0] / 2, c[1] - size[1] / 2, 0.0], [c[0] + size[0] / 2, c[1] + size[1] / 2, size[2]]])
+        box = np.array([[c[0] - size[0] / 2, c[1] - size[1] / 2, 0.0],
+                        [c[0] + size[0] / 2, c[1] + size[1] / 2, size[2]]])
         cams.append(default_camera(box, aspect=panel[0] / panel[1]))
     scene = _scene(mi, [body], radars, cams[0], panel, spp, _floor(pts))
     params = mi.traverse(scene)

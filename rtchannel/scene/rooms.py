@@ -116,6 +116,7 @@ def check_inside_room(motion, scene) -> None:
     if out.any():
         k = int(np.argmax(out))
         name = getattr(scene, "source", scene)
-        raise InputError(f"scene {name}: the person is outside the room's walls (x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m):"
-                         f" hips at ({xy[k, 0]:.3g}, {xy[k, 1]:.3g}) m at t = {k / motion.fps:.2f} s" + MOVE_THE_PERSON)
+        raise InputError(f"scene {name}: the person is outside the room's walls (x {x0:g}..{x1:g} m, "
+                         f"y {y0:g}..{y1:g} m): hips at ({xy[k, 0]:.3g}, {xy[k, 1]:.3g}) m at "
+                         f"t = {k / motion.fps:.2f} s" + MOVE_THE_PERSON)
 

@@ -23,6 +23,7 @@ import xml.etree.ElementTree as ET
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -152,7 +153,7 @@ class RTScene:
         end = xml.rfind("</scene>")
         if end < 0:
             raise InputError(f"{self.path}: not a Mitsuba scene file (no </scene>)")
-        self.sionna_scene = None
+        self.sionna_scene: Any = None  # a sionna.rt.Scene once loaded through Sionna RT
         with tempfile.TemporaryDirectory() as tmp:
             ply = Path(tmp) / "body.ply"
             self._body_mesh(mi, verts).write_ply(str(ply))
@@ -189,10 +190,13 @@ class RTScene:
         self.sionna_scene = load_scene_string(rt.load_scene_from_string, xml, self.path, merge_shapes=False)
         self.sionna_scene.frequency = self.frequency_hz
         body = self.sionna_scene.objects[BODY_ID]
-        pattern_args = {"lambertian": {}, "directive": {"alpha_r": self.skin.alpha_r},
-                        "backscattering": {"alpha_r": self.skin.alpha_r, "alpha_i": self.skin.alpha_i,
-                                           "lambda_": self.skin.lambda_}}[self.skin.scattering_pattern]
-        body.radio_material.scattering_pattern = scattering_pattern_registry.get(self.skin.scattering_pattern)(**pattern_args)
+        patterns: dict[str, dict[str, float]] = {
+            "lambertian": {}, "directive": {"alpha_r": self.skin.alpha_r},
+            "backscattering": {"alpha_r": self.skin.alpha_r, "alpha_i": self.skin.alpha_i,
+                               "lambda_": self.skin.lambda_}}
+        pattern_args = patterns[self.skin.scattering_pattern]
+        pattern = scattering_pattern_registry.get(self.skin.scattering_pattern)
+        body.radio_material.scattering_pattern = pattern(**pattern_args)
         self.mi_scene = self.sionna_scene.mi_scene
         self._params = self.sionna_scene.mi_scene_params
         out = []
@@ -424,10 +428,9 @@ def get_scene(scene: str | Path, lod: str, height: float, frequency_hz: float,
             if not np.array_equal(sc.body_vertices, rest):
                 sc.set_body(rest)
             return sc
-    key += (sionna,)
     av = load_avatar(lod, height)
     sc = RTScene(scene, av.faces, av.vertices, frequency_hz, skin, sionna=sionna, roughness_m=roughness_m)
-    _CACHE[key] = (sc, sc.body_vertices.copy())
+    _CACHE[key + (sionna,)] = (sc, sc.body_vertices.copy())
     while len(_CACHE) > _CACHE_SIZE:
         _CACHE.popitem(last=False)
     return sc

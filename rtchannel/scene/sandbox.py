@@ -57,7 +57,7 @@ def _parse(path: Path, budget: list[int]):
         raise SceneFileError(f"{path}: cannot read scene file: {e.strerror or type(e).__name__}") from None
 
     class LineElement(ET.Element):  # the C Element takes no attributes; a subclass has a __dict__
-        sourceline = None
+        sourceline: int | None = None
 
     class Target(ET.TreeBuilder):
         def start(self, tag, attrs):
@@ -65,10 +65,12 @@ def _parse(path: Path, budget: list[int]):
             if budget[0] < 0:
                 raise SceneFileError(f"{path}: more than {MAX_ELEMENTS} XML elements")
             el = super().start(tag, attrs)
+            assert isinstance(el, LineElement)  # element_factory=LineElement
             el.sourceline = parser.parser.CurrentLineNumber
             return el
 
-    parser = DefusedXMLParser(target=Target(element_factory=LineElement), forbid_dtd=True, forbid_entities=True, forbid_external=True)
+    parser = DefusedXMLParser(target=Target(element_factory=LineElement), forbid_dtd=True, forbid_entities=True,
+                              forbid_external=True)
     try:
         parser.feed(data)
         return parser.close()
@@ -90,7 +92,8 @@ def _substitute(value: str, defaults: dict[str, str], path: Path, line: int) -> 
     return _VAR.sub(sub, value)
 
 
-def _check_ref(value: str, base: Path, roots: list[Path], path: Path, line: int, what: str, folder: bool = False) -> Path:
+def _check_ref(value: str, base: Path, roots: list[Path], path: Path, line: int, what: str,
+               folder: bool = False) -> Path:
     """The resolved file a scene value names; SceneFileError unless it exists under one of `roots`."""
     if not value.strip() or "\0" in value:
         raise SceneFileError(f"{path}: line {line}: empty or invalid {what}")
@@ -111,12 +114,13 @@ def _check(path: Path, roots: list[Path], depth: int, budget: list[int], seen: s
     base = path.parent
     defaults = {el.get("name", ""): el.get("value", "") for el in root.iter("default")}
     for el in root.iter():
-        line = getattr(el, "sourceline", None)
+        line: int = getattr(el, "sourceline", 0)  # _parse's LineElement sets it on every element
         attrs = {k: _substitute(v, defaults, path, line) if "$" in v else v for k, v in el.attrib.items()}
         if el.tag == "include":
             inc = _check_ref(attrs.get("filename", ""), base, roots, path, line, "include")
             if depth + 1 > MAX_INCLUDE_DEPTH or inc in seen:
-                raise SceneFileError(f"{path}: line {line}: includes nested deeper than {MAX_INCLUDE_DEPTH} or in a cycle")
+                raise SceneFileError(f"{path}: line {line}: includes nested deeper than {MAX_INCLUDE_DEPTH} or in a "
+                                     "cycle")
             _check(inc, roots, depth + 1, budget, seen | {inc})
             continue
         if el.tag == "path":  # adds a search folder to Mitsuba's file resolver
@@ -125,7 +129,8 @@ def _check(path: Path, roots: list[Path], depth: int, budget: list[int], seen: s
         named = el.get("name", "").lower()
         for key, value in attrs.items():
             key_l = key.lower()
-            pathlike = (key_l in _PATH_NAMES or (key_l == "value" and (named in _PATH_NAMES or named.endswith("filename")))
+            pathlike = (key_l in _PATH_NAMES
+                        or (key_l == "value" and (named in _PATH_NAMES or named.endswith("filename")))
                         or (key_l not in ("name", "id", "type") and ("/" in value or "\\" in value
                                                                       or _FILE_SUFFIX.search(value.strip()))))
             if pathlike:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 from processing.errors import InputError
 
@@ -109,7 +110,7 @@ class Scene:
         from rtchannel.scene.rt_scene import SCENES
 
         if is_room_name(self.source):
-            return room_xml_path(self.source)
+            return room_xml_path(str(self.source))
         path = SCENES.get(str(self.source), Path(self.source))
         if not path.is_file():
             raise InputError(f"scene '{self.source}' is neither one of {', '.join(SCENES)} nor an existing XML file")
@@ -135,7 +136,7 @@ class Scene:
 
     def describe(self) -> dict:
         """JSON-serialisable description stored with every simulation (`from_describe` rebuilds the scene)."""
-        d = {"source": str(self.source)}
+        d: dict[str, Any] = {"source": str(self.source)}
         if self.furniture:
             d["furniture"] = [f.describe() for f in self.furniture]
         return d
