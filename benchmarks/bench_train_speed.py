@@ -87,7 +87,8 @@ def main() -> int:
         for name in order:
             r = _run(versions[name], a.data, out / f"{name}_s{seed}.pt", seed, a.extra, cache)
             rows[name].append(r)
-            print(f"{name:8s} seed {seed}: {r['epochs']} epochs x {r['n_train']}, epoch {r['epoch_samples_per_s']:.0f}, "
+            print(f"{name:8s} seed {seed}: {r['epochs']} epochs x {r['n_train']}, "
+                  f"epoch {r['epoch_samples_per_s']:.0f}, "
                   f"end-to-end {r['end_to_end_samples_per_s']:.0f}, cpu {r['cpu_samples_per_s']:.0f} samples/s; load "
                   f"{r['load_s']:.1f} s; val acc {100 * r['val_accuracy']:.1f} %; loadavg {r['loadavg_before']:.1f}",
                   flush=True)

@@ -44,10 +44,11 @@ CODE = ("processing.classifier.preprocess", "processing.io.dataset_reader")  # s
 def _code_digest(modules) -> str:
     """sha256 of the source files of `modules` (dotted names)."""
     import importlib
+    import inspect
 
     h = hashlib.sha256()
     for name in modules:
-        h.update(Path(importlib.import_module(name).__file__).read_bytes())
+        h.update(Path(inspect.getfile(importlib.import_module(name))).read_bytes())
     return h.hexdigest()
 
 

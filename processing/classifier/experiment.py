@@ -99,7 +99,8 @@ def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None 
 
         labels = read_labels_csv(labels)
     t0 = time.perf_counter()
-    parts, names, entries, left_out = [], [], [], {}
+    parts, names, entries = [], [], []
+    left_out: dict[str, int] = {}
     for spec in _specs(data):
         if is_image_spec(spec):
             x, y, groups, img_names, img_entries, skipped = image_arrays(spec, links, pre, labels, cache=cache)
@@ -214,11 +215,13 @@ def _initial_settings(clf: Classifier, links, preprocess, model_cfg):
     if preprocess is not None and preprocess != clf.preprocess:
         raise InputError("init: the preprocessing differs from the checkpoint's: "
                          + "; ".join(_differences(preprocess, clf.preprocess)[:3]))
-    if model_cfg is not None and model_cfg != clf.model.cfg:
-        raise InputError(f"init: the checkpoint's network ({clf.model.cfg.n_branches} links {clf.links}, input "
-                         f"{tuple(clf.model.cfg.input_size)}) differs from the one to train: "
-                         + "; ".join(_differences(model_cfg, clf.model.cfg)[:3]))
-    return list(clf.links), clf.preprocess, clf.model.cfg
+    net_cfg = clf.model.cfg
+    assert isinstance(net_cfg, ModelConfig)  # every checkpoint's network is a MultiPerspectiveDCNN
+    if model_cfg is not None and model_cfg != net_cfg:
+        raise InputError(f"init: the checkpoint's network ({net_cfg.n_branches} links {clf.links}, input "
+                         f"{tuple(net_cfg.input_size)}) differs from the one to train: "
+                         + "; ".join(_differences(model_cfg, net_cfg)[:3]))
+    return list(clf.links), clf.preprocess, net_cfg
 
 
 def train_classifier(data, *, links=None, preprocess: PreprocessConfig | None = None,
@@ -344,8 +347,10 @@ class Evaluation:
         rows = ["name,true,predicted,confidence"] + [
             f"{self.names[i]},{classes[self.y[i]]},{classes[pred[i]]},{self.proba[i, pred[i]]:.4f}"
             for i in range(len(self.y))]
-        return [plot_confusion(self.report, out / "confusion.png"), write_confusion_csv(self.report, out / "confusion.csv"),
-                write_text_atomic(out / "metrics.json", json.dumps({"title": self.title, **self.report.as_dict()}, indent=1)),
+        metrics = json.dumps({"title": self.title, **self.report.as_dict()}, indent=1)
+        return [plot_confusion(self.report, out / "confusion.png"),
+                write_confusion_csv(self.report, out / "confusion.csv"),
+                write_text_atomic(out / "metrics.json", metrics),
                 write_text_atomic(out / "predictions.csv", "\n".join(rows) + "\n")]
 
 

@@ -97,13 +97,13 @@ def image_arrays(spec: str, links, pre, labels: dict | None = None, classes=ACTI
                              f"({', '.join(links)}); train a single-radar model (--links radar1)")
     folder, people, acts = parse_image_spec(spec)
     left_out: dict[str, int] = {}
-    entries = []
+    entries: list[dict] = []
     for path in list_images(folder):
         rel = path.relative_to(folder).as_posix()
         try:
             act, subj = image_label(path, labels)
-        except ContradictoryNameError as e:
-            warnings.warn(f"{rel}: skipped, its name contradicts itself ({str(e).split(': ', 1)[-1]})", stacklevel=2)
+        except ContradictoryNameError as bad:
+            warnings.warn(f"{rel}: skipped, its name contradicts itself ({str(bad).split(': ', 1)[-1]})", stacklevel=2)
             left_out["name contradicts itself"] = left_out.get("name contradicts itself", 0) + 1
             continue
         if (people is not None and (subj is None or subj not in people)) or (acts is not None and act not in acts):
@@ -121,9 +121,9 @@ def image_arrays(spec: str, links, pre, labels: dict | None = None, classes=ACTI
         raise RealImageError(f"{spec}: no image of the classes {', '.join(classes)} selected")
     shape = (len(entries), 1, pre.n_velocity, pre.n_time)
     key = array_cache.cache_key(entries, links, pre, extra_code=IMAGE_CODE) if cache else None
-    x = array_cache.load_inputs(key, shape) if cache else None
+    x = array_cache.load_inputs(key, shape) if key is not None else None
     if x is None:
-        rows, kept = [], []
+        rows, kept = [], []  # type: list[np.ndarray], list[dict]
         for e in entries:
             try:
                 sig = read_real_image(e["path"])
@@ -137,7 +137,7 @@ def image_arrays(spec: str, links, pre, labels: dict | None = None, classes=ACTI
         if not kept:
             raise RealImageError(f"{spec}: none of the {len(entries)} images could be read")
         x = np.stack(rows).astype(np.float32)
-        if cache and len(kept) == len(entries):  # a partly unreadable folder is read again next time
+        if key is not None and len(kept) == len(entries):  # a partly unreadable folder is read again next time
             array_cache.store_inputs(key, x)
         entries = kept
     for e in entries:

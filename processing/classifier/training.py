@@ -23,7 +23,7 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import torch
@@ -33,11 +33,11 @@ from torch import nn
 
 from processing.classifier.augment import AugmentConfig, augment_batch
 from processing.classifier.checkpoint import CHECKPOINT_VERSION, load_checkpoint, save_checkpoint
-from processing.classifier.model import ModelConfig, build_model
+from processing.classifier.model import ModelConfig, MultiPerspectiveDCNN, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess_links
 from processing.classifier.splits import holdout_split as _holdout_split
 from processing.classifier.splits import split_indices  # noqa: F401 - re-exported (its old home)
-from processing.errors import InputError, TrainingError, one_line
+from processing.errors import TrainingError, one_line
 
 DEFAULT_THREADS = 1  # pinned: results must not depend on the machine's load (see the module docstring)
 
@@ -106,7 +106,7 @@ def setup_torch(seed: int, threads: int | None = None) -> None:
     # deterministic mode also fills every new tensor's memory with NaN (a debugging aid against reading
     # uninitialised memory); no kernel here reads it, so the weights are the same bit for bit without it, and
     # the fills took a third of an epoch's CPU time (measured, torch.profiler: aten::fill_)
-    torch.utils.deterministic.fill_uninitialized_memory = False
+    torch.utils.deterministic.fill_uninitialized_memory = False  # type: ignore[attr-defined]  # not in torch's stubs
 
 
 def dataset_arrays(reader, indices, links, pre: PreprocessConfig, progress: bool = False):
@@ -209,16 +209,17 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         raise TrainingError(f"cannot split the data: {one_line(e)}") from None
     fmt = torch.channels_last if cfg.memory_format == "channels_last" else torch.contiguous_format
     xt, yt = torch.from_numpy(np.ascontiguousarray(x[tr])), torch.from_numpy(np.asarray(y)[tr])
-    xv, yv = torch.from_numpy(np.ascontiguousarray(x[va])).contiguous(memory_format=fmt), torch.from_numpy(np.asarray(y)[va])
+    xv = torch.from_numpy(np.ascontiguousarray(x[va])).contiguous(memory_format=fmt)
+    yv = torch.from_numpy(np.asarray(y)[va])
     model = build_model(model_cfg)
     if init_state is not None:
         model.load_state_dict(init_state)
-    model.to(memory_format=fmt)
+    model.to(memory_format=fmt)  # type: ignore[call-overload]  # torch's stubs lack the keyword
     opt = _optimizer(model, cfg)
     draw = _source_probabilities(sources, source_weights, tr) if source_weights is not None else None
     loss_fn = nn.CrossEntropyLoss()
     gen = torch.Generator().manual_seed(cfg.seed)
-    hist = {k: [] for k in ("train_loss", "train_acc", "val_loss", "val_acc", "seconds")}
+    hist: dict[str, list[float]] = {k: [] for k in ("train_loss", "train_acc", "val_loss", "val_acc", "seconds")}
     best, best_state, best_epoch, waited = np.inf, copy.deepcopy(model.state_dict()), 0, 0
     states = []  # every epoch's weights, for cfg.average (the network is small: ~1 MB each)
     bar = tqdm(range(1, cfg.epochs + 1), desc="training", unit="epoch", disable=not progress)
@@ -274,12 +275,13 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         if log:
             log(f"weights averaged over epochs {lo}-{hi}: val loss {vl:.4f} (best single epoch {best:.4f}), "
                 f"val acc {vacc:.3f}")
-    model.to(memory_format=torch.contiguous_format).eval()  # checkpoints and callers get the usual layout
+    # checkpoints and callers get the usual layout (torch's stubs lack the keyword)
+    model.to(memory_format=torch.contiguous_format).eval()  # type: ignore[call-overload]
     return TrainResult(model=model, history=hist, train_idx=tr, val_idx=va, best_epoch=best_epoch,
                        seconds=time.perf_counter() - t_start, extra=extra)
 
 
-def _optimizer(model: nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
+def _optimizer(model: MultiPerspectiveDCNN, cfg: TrainConfig) -> torch.optim.Optimizer:
     """Adam over the network, the feature networks at ``cfg.feature_lr_scale`` times the rate (frozen at 0)."""
     if cfg.feature_lr_scale == 1.0:
         return torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -288,8 +290,9 @@ def _optimizer(model: nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
         for q in features:
             q.requires_grad_(False)
         return torch.optim.Adam(model.mlp.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    return torch.optim.Adam([{"params": features, "lr": cfg.lr * cfg.feature_lr_scale},
-                             {"params": list(model.mlp.parameters())}], lr=cfg.lr, weight_decay=cfg.weight_decay)
+    groups: list[dict[str, Any]] = [{"params": features, "lr": cfg.lr * cfg.feature_lr_scale},
+                                    {"params": list(model.mlp.parameters())}]
+    return torch.optim.Adam(groups, lr=cfg.lr, weight_decay=cfg.weight_decay)
 
 
 def _source_probabilities(sources, weights, train_idx) -> torch.Tensor:
@@ -354,5 +357,6 @@ def recompute_batch_norm(model: nn.Module, x: torch.Tensor, batch_size: int) -> 
 
 
 __all__ = ["AugmentConfig", "CHECKPOINT_VERSION", "DEFAULT_THREADS", "TrainConfig", "TrainResult",
-           "auto_threads", "average_states", "averaging_window", "dataset_arrays", "recompute_batch_norm", "load_checkpoint", "save_checkpoint", "setup_torch",
+           "auto_threads", "average_states", "averaging_window", "dataset_arrays", "recompute_batch_norm",
+           "load_checkpoint", "save_checkpoint", "setup_torch",
            "split_indices", "train"]

@@ -32,7 +32,6 @@ import hashlib
 import json
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -44,7 +43,8 @@ from processing.classifier.preprocess import PreprocessConfig
 from processing.classifier.training import TrainConfig
 from processing.errors import InputError
 
-ARMS = ("real", "finetune", "mixed")
+Arm = Literal["real", "finetune", "mixed"]
+ARMS: tuple[Arm, ...] = ("real", "finetune", "mixed")
 Shot = int | Literal["all"]
 
 
@@ -62,7 +62,7 @@ class TransferConfig(BaseModel):
                                     "in training ('all': every training-fold image)")
     folds: int = Field(5, ge=2, le=50, description="subject-grouped folds")
     seeds: tuple[int, ...] = Field((0,), min_length=1, description="training seeds (pretraining, shots, batches)")
-    arms: tuple[Literal["real", "finetune", "mixed"], ...] = Field(ARMS, min_length=1)
+    arms: tuple[Arm, ...] = Field(ARMS, min_length=1)
     batch_size: int = Field(32, ge=1, le=4096)
     real_steps: int = Field(150, ge=1, le=100_000, description="optimiser steps of the real-only arm (from scratch)")
     finetune_steps: int = Field(100, ge=1, le=100_000, description="steps of the fine-tuning arm")

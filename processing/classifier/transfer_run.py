@@ -98,7 +98,8 @@ def load_study_data(sim, images, cfg: TransferConfig, labels=None, pretrained=No
         pre, mcfg, link = first.preprocess, first.model.cfg, first.links[0]
         states = {seed: c.model.state_dict() for seed, c in zip(cfg.seeds, clfs)}
     if mcfg is None:
-        mcfg = cfg.model or ModelConfig(n_classes=len(ACTIVITIES), n_branches=1, input_size=(pre.n_velocity, pre.n_time))
+        mcfg = cfg.model or ModelConfig(n_classes=len(ACTIVITIES), n_branches=1,
+                                        input_size=(pre.n_velocity, pre.n_time))
     if isinstance(labels, (str, Path)):
         from processing.realdata.real_images import read_labels_csv
 

@@ -183,7 +183,8 @@ def _configs(args):
 # option -> (settings model, fields) it sets, for comparing given options with an --init checkpoint
 _OPTION_FIELDS = {"size": ("pre", ("n_velocity", "n_time")), "v_range": ("pre", ("v_range_mps",)),
                   "time_mode": ("pre", ("time_mode",)), "window_s": ("pre", ("window_s",)),
-                  "scale": ("pre", ("scale",)), "floor_db": ("pre", ("floor_db",)), "intensity": ("pre", ("intensity",)),
+                  "scale": ("pre", ("scale",)), "floor_db": ("pre", ("floor_db",)),
+                  "intensity": ("pre", ("intensity",)),
                   "kernel": ("net", ("kernel_size",)), "padding": ("net", ("padding",)), "fusion": ("net", ("fusion",)),
                   "shared_weights": ("net", ("shared_weights",)), "time_pool": ("net", ("time_pool",)),
                   "no_batch_norm": ("net", ("batch_norm",)), "links": ("links", ())}
@@ -325,7 +326,8 @@ def _evaluate_images(clf, args, out: Path) -> int:
     files = write_image_evaluation(ev, out, title, extra={"people": args.people, "seconds": time.perf_counter() - t0,
                                                           "left_out_seen_in_training": len(seen),
                                                           "seen_in_training": [im.name for im in seen]})
-    print(f"{title}:\n{ev.summary()}" + (f"\n  {len(seen)} image(s) left out: training data of the model" if seen else ""))
+    left = f"\n  {len(seen)} image(s) left out: training data of the model" if seen else ""
+    print(f"{title}:\n{ev.summary()}" + left)
     print("wrote " + ", ".join(str(f) for f in files))
     return 0
 
