@@ -18,6 +18,7 @@ ALLOWED = [
     ("rtchannel/cli/common.py", "open(probe"),  # the free-space probe of check_output (deleted at once)
     ("rtchannel/dataset/runner.py", '".lock"'),  # the advisory lock file, never read
     ("processing/io/dataset_store.py", 'open(path, "a")'),  # index.jsonl append: a torn last line is skipped on read
+    ("processing/classifier/transfer_run.py", 'open(path, "a")'),  # runs.jsonl append: a torn last line is re-run
     ("rtchannel/motion/c3d.py", "np.savez(sys.argv[2]"),  # the ezc3d child's hand-over file in a private folder
     ("processing/plots/signatures.py", "savefig_atomic"),
     ("processing/plots/classifier.py", "savefig_atomic"),

@@ -91,6 +91,10 @@ def ensemble(classifiers: list[Classifier], names: list[str] | None = None, *, d
     dsps = [clf.meta.get("dsp") for clf in classifiers]
     # the DSP settings travel with the model for `evaluate --recordings`; members made from other data keep none
     meta = {"members": info, "dsp": dsps[0] if all(d == dsps[0] for d in dsps) else None}
+    # every real image any member saw, so that an evaluation of the vote leaves them out as well
+    real = {(r.get("sha256"), r.get("role")): r for clf in classifiers for r in clf.meta.get("real_images") or []}
+    if real:
+        meta["real_images"] = list(real.values())
     return Classifier(model=model, preprocess=first.preprocess, classes=list(first.classes),
                       links=list(first.links), meta=meta)
 

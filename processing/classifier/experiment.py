@@ -47,6 +47,8 @@ class Dataset:
         entries: the index entries [N] (every parameter that made each item).
         spec: the specs, joined by " + ".
         seconds: loading time [s].
+        sources: index of the spec each item came from [N] (for per-dataset weights); None: one source.
+        left_out: real images not used, counted by reason (e.g. an activity that is not a class).
     """
 
     x: np.ndarray
@@ -56,6 +58,8 @@ class Dataset:
     entries: list[dict]
     spec: str
     seconds: float = 0.0
+    sources: np.ndarray | None = None
+    left_out: dict = field(default_factory=dict)
 
     def __repr__(self) -> str:
         counts = ", ".join(f"{ACTIVITIES[k]}={n}" for k, n in zip(*np.unique(self.y, return_counts=True)))
@@ -72,24 +76,44 @@ def _specs(data) -> list[str]:
 
 
 def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None = None,
-                 progress: bool = False) -> Dataset:
+                 progress: bool = False, cache: bool = True, labels: dict | str | Path | None = None) -> Dataset:
     """Load and preprocess the items of one or several dataset specs into one `Dataset`.
 
     Args:
-        data: a spec ``DIR[:FILTER]`` (str or Path) or a sequence of them.
+        data: a spec ``DIR[:FILTER]`` (str or Path), a spec of real labelled images ``images:DIR[:FILTER]``
+            (`processing.classifier.real_data`; single-link models), or a sequence of them.
         links: the radar links to load (one network branch each).
         preprocess: the preprocessing (default `PreprocessConfig()`).
         progress: show a progress bar.
+        cache: read the preprocessed inputs from the on-disk cache when they are there, and write them there
+            after preprocessing (`processing.classifier.array_cache`; the same arrays either way).
+        labels: for ``images:`` specs whose file names are not Glasgow names: {file name: (activity, subject)}
+            or the path of a CSV ``file,activity[,subject]``.
     """
+    from processing.classifier.real_data import image_arrays, is_image_spec
     from processing.io.dataset_query import open_spec
 
     pre = PreprocessConfig() if preprocess is None else preprocess
+    if isinstance(labels, (str, Path)):
+        from processing.realdata.real_images import read_labels_csv
+
+        labels = read_labels_csv(labels)
     t0 = time.perf_counter()
     parts, names, entries = [], [], []
+    left_out: dict[str, int] = {}
     for spec in _specs(data):
+        if is_image_spec(spec):
+            x, y, groups, img_names, img_entries, skipped = image_arrays(spec, links, pre, labels, cache=cache)
+            parts.append((x, y, groups))
+            names += img_names
+            entries += img_entries
+            for why, n in skipped.items():
+                left_out[why] = left_out.get(why, 0) + n
+            continue
         reader, idx = open_spec(spec)
         try:
-            parts.append(dataset_arrays(reader, idx, list(links), pre, progress=progress))
+            parts.append(_cached_arrays(reader, idx, list(links), pre, progress) if cache else
+                         dataset_arrays(reader, idx, list(links), pre, progress=progress))
         except (KeyError, ValueError) as e:
             raise InputError(f"{spec}: {str(e).strip(chr(39) + chr(34))}") from None
         names += [reader.entries[i]["item_id"] for i in idx]
@@ -97,8 +121,26 @@ def load_dataset(data, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None 
     x = np.concatenate([p[0] for p in parts])
     y = np.concatenate([p[1] for p in parts])
     groups = [g for p in parts for g in p[2]]
+    sources = np.concatenate([np.full(len(p[1]), k, np.int64) for k, p in enumerate(parts)])
     return Dataset(x=x, y=y, groups=groups, names=names, entries=entries, spec=" + ".join(_specs(data)),
-                   seconds=time.perf_counter() - t0)
+                   seconds=time.perf_counter() - t0, sources=sources, left_out=left_out)
+
+
+def _cached_arrays(reader, idx, links, pre: PreprocessConfig, progress: bool):
+    """`dataset_arrays` through the on-disk cache of preprocessed inputs (labels and groups from the index)."""
+    from processing.classifier import array_cache
+
+    chosen = [reader.entries[i] for i in idx]
+    if any(link not in e["links"] for e in chosen for link in links):  # dataset_arrays names the missing link
+        return dataset_arrays(reader, idx, links, pre, progress=progress)
+    key = array_cache.cache_key(chosen, links, pre)
+    x = array_cache.load_inputs(key, (len(chosen), len(links), pre.n_velocity, pre.n_time))
+    if x is None:
+        x, y, groups = dataset_arrays(reader, idx, links, pre, progress=progress)
+        array_cache.store_inputs(key, x)
+        return x, y, groups
+    y = np.array([int(e["label"]) for e in chosen], np.int64)
+    return x, y, [str(e.get("group", e.get("item_id", i))) for i, e in zip(idx, chosen)]
 
 
 @dataclass
@@ -143,8 +185,8 @@ class Training:
                 write_confusion_csv(self.validation, f"{stem}_val_confusion.csv")]
 
 
-def _initial_state(init, model_cfg: ModelConfig, links) -> dict | None:
-    """The weights training starts from: `init` (a `Classifier` or a checkpoint path) of the same network."""
+def _init_classifier(init) -> Classifier | None:
+    """The `Classifier` training starts from (`init`: a Classifier or a checkpoint path), never an ensemble."""
     if init is None:
         return None
     from processing.classifier.ensemble import SoftVote
@@ -156,50 +198,91 @@ def _initial_state(init, model_cfg: ModelConfig, links) -> dict | None:
         clf = load_checkpoint(init)
     if isinstance(clf.model, SoftVote):
         raise InputError("init: an ensemble cannot initialise training; give one of its member checkpoints")
-    if clf.model.cfg != model_cfg or list(clf.links) != list(links):
-        raise InputError(f"init: the checkpoint's network ({clf.model.cfg.n_branches} links {clf.links}, input "
-                         f"{tuple(clf.model.cfg.input_size)}) differs from the one to train ({len(links)} links "
-                         f"{list(links)}, input {tuple(model_cfg.input_size)})")
-    return {k: v.detach().clone() for k, v in clf.model.state_dict().items()}
+    return clf
 
 
-def train_classifier(data, *, links=DEFAULT_LINKS, preprocess: PreprocessConfig | None = None,
+def _differences(given, kept) -> list[str]:
+    """'field given (checkpoint: kept)' for every field in which two settings models differ."""
+    a, b = given.model_dump(), kept.model_dump()
+    return [f"{k} {a[k]!r} (checkpoint: {b.get(k)!r})" for k in a if a[k] != b.get(k)]
+
+
+def _initial_settings(clf: Classifier, links, preprocess, model_cfg):
+    """(links, preprocessing, network) of a training from `clf`: the checkpoint's, refusing any given that differ
+    (fine-tuning must see its inputs as the checkpoint's training did)."""
+    if links is not None and list(links) != list(clf.links):
+        raise InputError(f"init: the checkpoint's network has links {list(clf.links)}, not {list(links)}")
+    if preprocess is not None and preprocess != clf.preprocess:
+        raise InputError("init: the preprocessing differs from the checkpoint's: "
+                         + "; ".join(_differences(preprocess, clf.preprocess)[:3]))
+    net_cfg = clf.model.cfg
+    assert isinstance(net_cfg, ModelConfig)  # every checkpoint's network is a MultiPerspectiveDCNN
+    if model_cfg is not None and model_cfg != net_cfg:
+        raise InputError(f"init: the checkpoint's network ({net_cfg.n_branches} links {clf.links}, input "
+                         f"{tuple(net_cfg.input_size)}) differs from the one to train: "
+                         + "; ".join(_differences(model_cfg, net_cfg)[:3]))
+    return list(clf.links), clf.preprocess, net_cfg
+
+
+def train_classifier(data, *, links=None, preprocess: PreprocessConfig | None = None,
                      model: ModelConfig | None = None, train_config: TrainConfig | None = None, init=None,
+                     weights=None, labels: dict | str | Path | None = None, cache: bool = True,
                      progress: bool = False, log=None) -> Training:
     """Train the seed's multiperspective DCNN on one or several datasets.
 
     Args:
-        data: a dataset spec ``DIR[:FILTER]``, a sequence of them (loaded into one training set), or a
-            `Dataset` from `load_dataset`.
-        links: radar links, one network branch each (one link: the single-radar variant).
-        preprocess: input preprocessing (default `PreprocessConfig()`: 64 x 64, active span, dB).
-        model: network settings (default: the seed's DCNN for `links` at the preprocessing's size).
+        data: a dataset spec ``DIR[:FILTER]``, a spec of real labelled images ``images:DIR[:FILTER]``, a sequence
+            of them (loaded into one training set), or a `Dataset` from `load_dataset`.
+        links: radar links, one network branch each (one link: the single-radar variant); default
+            ``DEFAULT_LINKS``, or the checkpoint's with `init`.
+        preprocess: input preprocessing (default `PreprocessConfig()`: 64 x 64, active span, dB; with `init` the
+            checkpoint's, and a different one is refused).
+        model: network settings (default: the seed's DCNN for `links` at the preprocessing's size; with `init`
+            the checkpoint's, and a different one is refused).
         train_config: optimisation, split and augmentation settings (default `TrainConfig()`).
         init: start from these weights instead of a random initialisation: a `Classifier` or a checkpoint
-            path of the same network (fine-tuning, transfer learning).
+            path (fine-tuning, transfer learning).
+        weights: one weight >= 0 per spec of `data`: the share of the training draws each dataset supplies
+            (mixed batches; `training.train`'s source_weights). None: one pass over all items per epoch.
+        labels: labels of ``images:`` specs whose names are not Glasgow names (`load_dataset`).
+        cache: use the on-disk cache of preprocessed inputs (`load_dataset`).
         progress: show progress bars.
         log: callable receiving progress lines (default: none).
 
     Returns:
-        `Training` (save it with `Training.save(path)`).
+        `Training` (save it with `Training.save(path)`). Its meta lists every real image the training (and the
+        checkpoint it started from) used, as ``real_images`` [{file, sha256, folder, role}], so that an
+        evaluation on real images can leave them out.
     """
-    pre = PreprocessConfig() if preprocess is None else preprocess
-    links = list(links)
-    mcfg = model if model is not None else ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links),
-                                                       input_size=(pre.n_velocity, pre.n_time))
+    from processing.classifier.real_data import seen_images
+
+    start = _init_classifier(init)
+    if start is not None:
+        links, pre, mcfg = _initial_settings(start, links, preprocess, model)
+    else:
+        links = list(DEFAULT_LINKS if links is None else links)
+        pre = PreprocessConfig() if preprocess is None else preprocess
+        mcfg = model if model is not None else ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links),
+                                                           input_size=(pre.n_velocity, pre.n_time))
     tcfg = TrainConfig() if train_config is None else train_config
-    state = _initial_state(init, mcfg, links)
-    ds = data if isinstance(data, Dataset) else load_dataset(data, links, pre, progress=progress)
+    state = None if start is None else {k: v.detach().clone() for k, v in start.model.state_dict().items()}
+    ds = data if isinstance(data, Dataset) else load_dataset(data, links, pre, progress=progress, labels=labels,
+                                                                     cache=cache)
+    n_specs = 1 if ds.sources is None else int(ds.sources.max()) + 1
+    if weights is not None and len(weights) != n_specs:
+        raise InputError(f"give one weight per dataset: {n_specs} dataset(s), {len(weights)} weight(s)")
     if log:
         counts = ", ".join(f"{ACTIVITIES[k]}={n}" for k, n in zip(*np.unique(ds.y, return_counts=True)))
-        log(f"{len(ds.y)} items from {ds.spec} ({counts}); loaded in {ds.seconds:.1f} s")
+        log(f"{len(ds.y)} items from {ds.spec} ({counts}); loaded in {ds.seconds:.1f} s"
+            + "".join(f"; {n} image(s) left out ({why})" for why, n in ds.left_out.items()))
     deployments = None
     if tcfg.val_split == "deployment":  # validation on held-out motion sources and deployment regions
         from processing.classifier.splits import deployment_factors
 
         deployments = deployment_factors(ds.entries)
     res = train(ds.x, ds.y, mcfg, tcfg, groups=ds.groups, progress=progress, log=log or None, preprocess=pre,
-                init_state=state, deployments=deployments)
+                init_state=state, deployments=deployments, sources=ds.sources,
+                source_weights=None if weights is None else [float(w) for w in weights])
     clf = Classifier(model=res.model, preprocess=pre, classes=list(ACTIVITIES), links=links)
     va = res.val_idx
     rep = classification_report(ds.y[va], clf.predict(ds.x[va]), ACTIVITIES)
@@ -207,9 +290,12 @@ def train_classifier(data, *, links=DEFAULT_LINKS, preprocess: PreprocessConfig 
             "best_epoch": res.best_epoch, "train_seconds": res.seconds, "load_seconds": ds.seconds,
             "train_config": tcfg.model_dump(mode="json"), "val_items": [ds.names[i] for i in va],
             "val_accuracy": rep.accuracy, "init": _describe_init(init), "holdout": res.extra.get("holdout"),
-            "averaged": res.extra.get("averaged")}
-    # the DSP settings of the training data, so that `evaluate --recordings` processes real IQ the same way
-    dsps = {json.dumps(e.get("params", {}).get("radar", {}).get("dsp"), sort_keys=True) for e in ds.entries}
+            "averaged": res.extra.get("averaged"), "weights": None if weights is None else [float(w) for w in weights],
+            "real_images": seen_images(ds.entries, res.train_idx, va)
+            + list((start.meta.get("real_images") or []) if start is not None else [])}
+    # the DSP settings of the simulated training data, so that `evaluate --recordings` processes real IQ the same way
+    dsps = {json.dumps(e.get("params", {}).get("radar", {}).get("dsp"), sort_keys=True) for e in ds.entries
+            if e.get("source") != "real"}
     meta["dsp"] = json.loads(dsps.pop()) if len(dsps) == 1 else None
     if log:
         log(f"trained in {res.seconds:.1f} s ({len(res.history['train_loss'])} epochs, best {res.best_epoch}); "
@@ -261,8 +347,10 @@ class Evaluation:
         rows = ["name,true,predicted,confidence"] + [
             f"{self.names[i]},{classes[self.y[i]]},{classes[pred[i]]},{self.proba[i, pred[i]]:.4f}"
             for i in range(len(self.y))]
-        return [plot_confusion(self.report, out / "confusion.png"), write_confusion_csv(self.report, out / "confusion.csv"),
-                write_text_atomic(out / "metrics.json", json.dumps({"title": self.title, **self.report.as_dict()}, indent=1)),
+        metrics = json.dumps({"title": self.title, **self.report.as_dict()}, indent=1)
+        return [plot_confusion(self.report, out / "confusion.png"),
+                write_confusion_csv(self.report, out / "confusion.csv"),
+                write_text_atomic(out / "metrics.json", metrics),
                 write_text_atomic(out / "predictions.csv", "\n".join(rows) + "\n")]
 
 

@@ -92,6 +92,19 @@ class ImageEvaluation:
         return "\n".join(lines)
 
 
+def split_seen(clf, images: list[RealImage]) -> tuple[list[RealImage], list[RealImage]]:
+    """(unseen, seen): `images` split by whether the model was trained or validated on them, by the sha256 of
+    the file against those its checkpoint records (``meta["real_images"]``, written by `train_classifier`
+    when real images were training data). A model trained on simulation alone has seen none."""
+    from processing.classifier.real_data import file_sha256
+
+    known = {r.get("sha256") for r in (getattr(clf, "meta", None) or {}).get("real_images") or []}
+    if not known:
+        return list(images), []
+    seen = [file_sha256(im.path) in known for im in images]
+    return [im for im, s in zip(images, seen) if not s], [im for im, s in zip(images, seen) if s]
+
+
 def evaluate_images(clf, images: list[RealImage], unreadable=()) -> ImageEvaluation:
     """Predict every image; metrics over the images whose activity is one of the model's classes."""
     known = [im for im in images if im.activity in clf.classes]

@@ -2,12 +2,14 @@
 fused features, an MLP head.
 
 FEN: four blocks of [conv (64, 72, 80, 96 kernels of k x k, k = 3 or 4) -> (BatchNorm) -> ReLU ->
-2x2 max pool -> 10 % dropout], then flatten. BatchNorm is not in the seed's description; it is on by
-default because without it the network sat at chance for many epochs on small datasets (measured), and
+2x2 max pool -> 10 % dropout], then flatten (the pool runs before the ReLU, which gives the same numbers).
+BatchNorm is not in the seed's description; it is on by default because without it the network sat at chance
+for many epochs on small datasets (measured), and
 `batch_norm=False` gives the literal seed stack. The seed's flatten size, 18816 = 96 x 14 x 14, matches 3x3 'valid'
 convolutions on a 256 x 256 image; the default here is the same 3x3 'valid' stack on a 64 x 64 image
 (the native 64 velocity bins of a 64-chirp window), which gives 96 x 2 x 2 = 384 features per radar
-and keeps training of the seed-size dataset within minutes on two CPU cores. MLP: Linear -> ReLU -> 15 % dropout -> Linear to the class logits.
+and keeps training of the seed-size dataset within minutes on two CPU cores. MLP: Linear -> ReLU -> 15 % dropout ->
+Linear to the class logits.
 
 Options (one code path): `n_branches` 1 (single radar) or 2+; `fusion` concat (seed), sum, max, mean;
 `shared_weights` (one FEN applied to every radar); `kernel_size` 3 or 4; `padding` same or valid;
@@ -101,16 +103,38 @@ class TimePool(nn.Module):
         return self.mode
 
 
+class Dropout(nn.Dropout):
+    """`nn.Dropout` whose mask is drawn in the tensor's logical (N, C, H, W) order whatever its memory layout.
+
+    torch fills a channels-last tensor's mask in memory order, so the same seed would drop other elements
+    than for the contiguous layout; drawing on a contiguous copy keeps one random stream for both layouts
+    (training in channels-last then differs from contiguous by float rounding only).
+    """
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if not self.training or self.p == 0 or x.is_contiguous():
+            return super().forward(x)
+        # what F.dropout does on CPU (Bernoulli noise divided by the keep probability, times x), with the noise
+        # drawn contiguous and only then laid out like x
+        keep = 1.0 - self.p
+        noise = torch.empty(x.shape, dtype=x.dtype).bernoulli_(keep)
+        return x * noise.contiguous(memory_format=torch.channels_last).div_(keep)
+
+
 class FEN(nn.Module):
     """Feature-extraction network of one radar: [B, 1, V, T] -> [B, features]."""
 
     def __init__(self, cfg: ModelConfig):
         super().__init__()
-        layers, c_in = [], 1
+        layers: list[nn.Module] = []
+        c_in = 1
         for c in cfg.channels:
             layers += [nn.Conv2d(c_in, c, cfg.kernel_size, padding=cfg.padding)]
             layers += [nn.BatchNorm2d(c)] if cfg.batch_norm else []
-            layers += [nn.ReLU(inplace=True), nn.MaxPool2d(2), nn.Dropout(cfg.fen_dropout)]
+            # the seed's conv -> ReLU -> pool, with the pool first: max and ReLU commute exactly (ReLU is
+            # monotone; same outputs and gradients, bit for bit), and the ReLU then runs on a quarter of the
+            # values. Parameter-free, so the state-dict keys are unchanged.
+            layers += [nn.MaxPool2d(2), nn.ReLU(inplace=True), Dropout(cfg.fen_dropout)]
             c_in = c
         if cfg.time_pool != "none":  # parameter-free, so the state-dict keys are those of 'none'
             layers += [TimePool(cfg.time_pool)]
@@ -135,7 +159,8 @@ class MultiPerspectiveDCNN(nn.Module):
             n_feat = 0
         if n_feat == 0:
             raise InputError(f"input {cfg.input_size} is too small for {len(cfg.channels)} '{cfg.padding}' "
-                             f"{cfg.kernel_size}x{cfg.kernel_size} conv/pool layers (use padding 'same' or a larger input)")
+                             f"{cfg.kernel_size}x{cfg.kernel_size} conv/pool layers (use padding 'same' or a larger "
+                             "input)")
         self.n_features = n_feat * (cfg.n_branches if cfg.fusion == "concat" else 1)
         self.mlp = nn.Sequential(nn.Linear(self.n_features, cfg.mlp_hidden), nn.ReLU(inplace=True),
                                  nn.Dropout(cfg.mlp_dropout), nn.Linear(cfg.mlp_hidden, cfg.n_classes))

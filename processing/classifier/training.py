@@ -23,20 +23,21 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import torch
+import torch.utils.deterministic
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
 from processing.classifier.augment import AugmentConfig, augment_batch
 from processing.classifier.checkpoint import CHECKPOINT_VERSION, load_checkpoint, save_checkpoint
-from processing.classifier.model import ModelConfig, build_model
+from processing.classifier.model import ModelConfig, MultiPerspectiveDCNN, build_model
 from processing.classifier.preprocess import PreprocessConfig, preprocess_links
 from processing.classifier.splits import holdout_split as _holdout_split
 from processing.classifier.splits import split_indices  # noqa: F401 - re-exported (its old home)
-from processing.errors import InputError, TrainingError, one_line
+from processing.errors import TrainingError, one_line
 
 DEFAULT_THREADS = 1  # pinned: results must not depend on the machine's load (see the module docstring)
 
@@ -69,6 +70,17 @@ class TrainConfig(BaseModel):
                                      "validation loss over its minimum that an averaged epoch may have")
     seed: int = Field(0, ge=0, le=2**32 - 1, description="random seed (scikit-learn's split takes 32 bits)")
     threads: int | None = Field(None, ge=1, le=256, description="torch CPU threads; None: DEFAULT_THREADS (1)")
+    # channels-last runs the convolutions, pooling and BatchNorm of this network 1.5-2x faster on CPU (measured,
+    # benchmarks/bench_train_speed.py); the weights then differ from 'contiguous' by float rounding only (the
+    # dropout masks are drawn in the same order, `model.Dropout`), which Adam's first steps amplify
+    memory_format: Literal["channels_last", "contiguous"] = Field(
+        "channels_last", description="memory layout of the activations while training ('contiguous': the layout "
+        "of trainings before it existed, which reproduces their weights)")
+    epoch_samples: int | None = Field(None, ge=1, le=10_000_000, description="items drawn per epoch when the "
+                                      "datasets are weighted (`train`'s source_weights); None: the training set's size")
+    feature_lr_scale: float = Field(1.0, ge=0, le=1, description="learning rate of the feature-extraction networks "
+                                    "(the convolutions and their BatchNorm) relative to lr: 1 one rate for all, < 1 "
+                                    "a lower one (discriminative fine-tuning), 0 frozen (only the MLP head learns)")
     # absent from checkpoints written before it existed: those trained without augmentation, the default
     augment: AugmentConfig = Field(AugmentConfig(), description="random transforms of training batches (default off)")
 
@@ -91,6 +103,10 @@ def setup_torch(seed: int, threads: int | None = None) -> None:
     torch.manual_seed(seed)
     np.random.seed(seed % 2**32)
     torch.use_deterministic_algorithms(True)
+    # deterministic mode also fills every new tensor's memory with NaN (a debugging aid against reading
+    # uninitialised memory); no kernel here reads it, so the weights are the same bit for bit without it, and
+    # the fills took a third of an epoch's CPU time (measured, torch.profiler: aten::fill_)
+    torch.utils.deterministic.fill_uninitialized_memory = False  # type: ignore[attr-defined]  # not in torch's stubs
 
 
 def dataset_arrays(reader, indices, links, pre: PreprocessConfig, progress: bool = False):
@@ -125,7 +141,7 @@ class TrainResult:
 def _evaluate(model, x, y, batch_size, loss_fn):
     model.eval()
     total, correct, n = 0.0, 0, 0
-    with torch.no_grad():
+    with torch.inference_mode():
         for s in range(0, x.shape[0], batch_size):
             xb, yb = x[s:s + batch_size], y[s:s + batch_size]
             out = model(xb)
@@ -138,7 +154,7 @@ def _evaluate(model, x, y, batch_size, loss_fn):
 def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig = TrainConfig(), groups=None,
           split: tuple[np.ndarray, np.ndarray] | None = None, progress: bool = True, log=print,
           preprocess: PreprocessConfig | None = None, deployments: dict | None = None,
-          init_state: dict | None = None) -> TrainResult:
+          init_state: dict | None = None, sources=None, source_weights=None) -> TrainResult:
     """Train on X [N, n_branches, V, T] / labels y [N] with an 80:20 stratified (grouped) split.
 
     `split` overrides the split with explicit (train, validation) indices. With ``cfg.val_split ==
@@ -150,6 +166,12 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     start from instead of the seeded random initialisation (fine-tuning). The returned model carries
     the weights of the epoch with the lowest validation loss (early stopping after `patience` epochs
     without improvement). History: per-epoch train/val loss and accuracy, and seconds per epoch.
+
+    Weighted datasets: with `source_weights` (one weight >= 0 per source) and `sources` (the source index of each
+    item [N]), every epoch draws ``cfg.epoch_samples`` (default: the training set's size) training items with
+    replacement, source k with probability weight_k / sum(weights) and uniformly within it, so a batch mixes the
+    sources in those shares whatever their sizes (mixed batches: e.g. a few real recordings beside thousands of
+    simulated ones). Without weights every epoch is one pass over the training items in a seeded order.
     """
     from tqdm import tqdm
 
@@ -185,28 +207,35 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
             tr, va = split_indices(y, groups if cfg.group_split else None, cfg.val_fraction, cfg.seed)
     except ValueError as e:  # too few samples or groups for the requested split
         raise TrainingError(f"cannot split the data: {one_line(e)}") from None
+    fmt = torch.channels_last if cfg.memory_format == "channels_last" else torch.contiguous_format
     xt, yt = torch.from_numpy(np.ascontiguousarray(x[tr])), torch.from_numpy(np.asarray(y)[tr])
-    xv, yv = torch.from_numpy(np.ascontiguousarray(x[va])), torch.from_numpy(np.asarray(y)[va])
+    xv = torch.from_numpy(np.ascontiguousarray(x[va])).contiguous(memory_format=fmt)
+    yv = torch.from_numpy(np.asarray(y)[va])
     model = build_model(model_cfg)
     if init_state is not None:
         model.load_state_dict(init_state)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    model.to(memory_format=fmt)  # type: ignore[call-overload]  # torch's stubs lack the keyword
+    opt = _optimizer(model, cfg)
+    draw = _source_probabilities(sources, source_weights, tr) if source_weights is not None else None
     loss_fn = nn.CrossEntropyLoss()
     gen = torch.Generator().manual_seed(cfg.seed)
-    hist = {k: [] for k in ("train_loss", "train_acc", "val_loss", "val_acc", "seconds")}
+    hist: dict[str, list[float]] = {k: [] for k in ("train_loss", "train_acc", "val_loss", "val_acc", "seconds")}
     best, best_state, best_epoch, waited = np.inf, copy.deepcopy(model.state_dict()), 0, 0
     states = []  # every epoch's weights, for cfg.average (the network is small: ~1 MB each)
     bar = tqdm(range(1, cfg.epochs + 1), desc="training", unit="epoch", disable=not progress)
     for epoch in bar:
         t0 = time.perf_counter()
         model.train()
-        order = torch.randperm(xt.shape[0], generator=gen)
+        if draw is None:
+            order = torch.randperm(xt.shape[0], generator=gen)
+        else:
+            order = torch.multinomial(draw, cfg.epoch_samples or xt.shape[0], replacement=True, generator=gen)
         run_loss, run_ok = 0.0, 0
-        for s in range(0, xt.shape[0], cfg.batch_size):
+        for s in range(0, order.numel(), cfg.batch_size):
             b = order[s:s + cfg.batch_size]
             opt.zero_grad()
             xb = augment_batch(xt[b], cfg.augment, gen, preprocess) if cfg.augment.enabled else xt[b]
-            out = model(xb)
+            out = model(xb.contiguous(memory_format=fmt))
             loss = loss_fn(out, yt[b])
             if not torch.isfinite(loss.detach()):
                 raise TrainingError(f"training diverged: the loss became {float(loss.detach())} at epoch {epoch} "
@@ -219,8 +248,8 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
         if xv.shape[0] and not np.isfinite(vl):
             raise TrainingError(f"training diverged: the validation loss became {vl} at epoch {epoch} "
                                 f"(learning rate {cfg.lr:g}); lower --lr. Nothing was saved")
-        hist["train_loss"].append(run_loss / xt.shape[0])
-        hist["train_acc"].append(run_ok / xt.shape[0])
+        hist["train_loss"].append(run_loss / order.numel())
+        hist["train_acc"].append(run_ok / order.numel())
         hist["val_loss"].append(vl)
         hist["val_acc"].append(vacc)
         hist["seconds"].append(time.perf_counter() - t0)
@@ -239,16 +268,47 @@ def train(x: np.ndarray, y: np.ndarray, model_cfg: ModelConfig, cfg: TrainConfig
     if cfg.average == "window" and xv.shape[0]:
         lo, hi = averaging_window(hist["val_loss"], best_epoch, cfg.average_tolerance)
         model.load_state_dict(average_states(states[lo - 1:hi]))
-        recompute_batch_norm(model, xt, cfg.batch_size)
+        recompute_batch_norm(model, xt.contiguous(memory_format=fmt), cfg.batch_size)
         vl, vacc = _evaluate(model, xv, yv, 256, loss_fn)
         extra["averaged"] = {"epochs": [lo, hi], "val_loss": vl, "val_acc": vacc,
                              "best_val_loss": float(best), "best_val_acc": float(hist["val_acc"][best_epoch - 1])}
         if log:
             log(f"weights averaged over epochs {lo}-{hi}: val loss {vl:.4f} (best single epoch {best:.4f}), "
                 f"val acc {vacc:.3f}")
-    model.eval()
+    # checkpoints and callers get the usual layout (torch's stubs lack the keyword)
+    model.to(memory_format=torch.contiguous_format).eval()  # type: ignore[call-overload]
     return TrainResult(model=model, history=hist, train_idx=tr, val_idx=va, best_epoch=best_epoch,
                        seconds=time.perf_counter() - t_start, extra=extra)
+
+
+def _optimizer(model: MultiPerspectiveDCNN, cfg: TrainConfig) -> torch.optim.Optimizer:
+    """Adam over the network, the feature networks at ``cfg.feature_lr_scale`` times the rate (frozen at 0)."""
+    if cfg.feature_lr_scale == 1.0:
+        return torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    features = list(model.fens.parameters())
+    if cfg.feature_lr_scale == 0.0:  # frozen: no gradients through the convolutions at all (cheaper too)
+        for q in features:
+            q.requires_grad_(False)
+        return torch.optim.Adam(model.mlp.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    groups: list[dict[str, Any]] = [{"params": features, "lr": cfg.lr * cfg.feature_lr_scale},
+                                    {"params": list(model.mlp.parameters())}]
+    return torch.optim.Adam(groups, lr=cfg.lr, weight_decay=cfg.weight_decay)
+
+
+def _source_probabilities(sources, weights, train_idx) -> torch.Tensor:
+    """Drawing probability [N_train] of each training item: its source's weight shared equally by the source's
+    training items (sources without training items drop out, the others' shares are renormalised)."""
+    src = np.asarray(sources, dtype=np.int64)[train_idx] if sources is not None else None
+    w = np.asarray(weights, dtype=np.float64)
+    if src is None or w.ndim != 1 or src.size == 0 or src.min() < 0 or src.max() >= w.size:
+        raise TrainingError(f"weighted training needs a source index in 0..{w.size - 1} for every item")
+    if not (np.isfinite(w).all() and (w >= 0).all()):
+        raise TrainingError(f"dataset weights must be finite and >= 0, got {w.tolist()}")
+    counts = np.bincount(src, minlength=w.size)
+    per_item = np.where(counts[src] > 0, w[src] / np.maximum(counts[src], 1), 0.0)
+    if per_item.sum() <= 0:
+        raise TrainingError("every training item has weight 0")
+    return torch.from_numpy(per_item / per_item.sum())
 
 
 def averaging_window(val_loss: list[float], best_epoch: int, tolerance: float) -> tuple[int, int]:
@@ -297,5 +357,6 @@ def recompute_batch_norm(model: nn.Module, x: torch.Tensor, batch_size: int) -> 
 
 
 __all__ = ["AugmentConfig", "CHECKPOINT_VERSION", "DEFAULT_THREADS", "TrainConfig", "TrainResult",
-           "auto_threads", "average_states", "averaging_window", "dataset_arrays", "recompute_batch_norm", "load_checkpoint", "save_checkpoint", "setup_torch",
+           "auto_threads", "average_states", "averaging_window", "dataset_arrays", "recompute_batch_norm",
+           "load_checkpoint", "save_checkpoint", "setup_torch",
            "split_indices", "train"]

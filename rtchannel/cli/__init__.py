@@ -34,13 +34,14 @@ def build_parser() -> argparse.ArgumentParser:
     from rtchannel.cli.render import add_render
     from rtchannel.cli.robustness import add_robustness
     from rtchannel.cli.simulate import add_simulate
+    from rtchannel.cli.transfer import add_transfer
 
     parser = OneLineParser(prog="rtchannel", description="Motion-capture driven MIMO radar simulator.")
     parser.add_argument("--debug", action="store_true", help="on an internal error, print the full traceback "
                         f"(also: {DEBUG_ENV}=1)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (add_simulate, add_render, add_dataset, add_classifier_commands, add_ensemble, add_robustness,
-                add_compare, add_bench, add_data):
+    for add in (add_simulate, add_render, add_dataset, add_classifier_commands, add_transfer, add_ensemble,
+                add_robustness, add_compare, add_bench, add_data):
         add(sub)
     return parser
 

@@ -21,29 +21,42 @@ def _user_error():
     return UserError
 
 
+# Defaults of the preprocessing and network options. Their argparse default is None, so that `train --init` can
+# tell an option the user gave (which must then equal the checkpoint's) from one left at its default.
+_PRE_NET_DEFAULTS = {"size": (64, 64), "v_range": 6.2, "time_mode": "active", "window_s": 6.0, "scale": "db",
+                     "floor_db": 40.0, "intensity": "p", "kernel": 3, "padding": "valid", "fusion": "concat",
+                     "shared_weights": False, "links": "radar1,radar2", "time_pool": "none", "no_batch_norm": False}
+
+
+def _opt(args, dest: str):
+    """The value of a preprocessing/network option: given, or its default."""
+    value = getattr(args, dest, None)
+    return _PRE_NET_DEFAULTS[dest] if value is None else value
+
+
 def _add_preprocess_model_args(p) -> None:
     g = p.add_argument_group("input preprocessing (stored in the model)")
-    g.add_argument("--size", type=int, nargs=2, default=(64, 64), metavar=("V", "T"),
+    g.add_argument("--size", type=int, nargs=2, metavar=("V", "T"),
                    help="input image: velocity bins, time bins (default 64 64)")
-    g.add_argument("--v-range", type=float, default=6.2, help="input velocity span +-V m/s (default 6.2; 0: "
+    g.add_argument("--v-range", type=float, help="input velocity span +-V m/s (default 6.2; 0: "
                    "keep the recorded bins)")
-    g.add_argument("--time-mode", choices=("resample", "window", "active"), default="active",
+    g.add_argument("--time-mode", choices=("resample", "window", "active"),
                    help="the active span only, idle standing before/after cropped (default), the whole "
                    "recording, or a fixed window around the motion")
-    g.add_argument("--window-s", type=float, default=6.0, help="window length for --time-mode window [s]")
-    g.add_argument("--scale", choices=("db", "linear"), default="db", help="intensity scale (default db)")
-    g.add_argument("--floor-db", type=float, default=40.0, help="dynamic range kept in dB (default 40)")
-    g.add_argument("--intensity", choices=("p", "power"), default="p", help="p: the column-normalised p(v,t) "
+    g.add_argument("--window-s", type=float, help="window length for --time-mode window [s] (default 6)")
+    g.add_argument("--scale", choices=("db", "linear"), help="intensity scale (default db)")
+    g.add_argument("--floor-db", type=float, help="dynamic range kept in dB (default 40)")
+    g.add_argument("--intensity", choices=("p", "power"), help="p: the column-normalised p(v,t) "
                    "(seed eq. 7, default); power: the spectrogram p(v,t) x column power (seed eq. 6), one scale per "
                    "sample, so quiet columns stay dark")
     g = p.add_argument_group("network")
-    g.add_argument("--kernel", type=int, default=3, choices=(3, 4), help="conv kernel size (seed: 3 or 4)")
-    g.add_argument("--padding", choices=("valid", "same"), default="valid")
-    g.add_argument("--fusion", choices=("concat", "sum", "max", "mean"), default="concat")
-    g.add_argument("--shared-weights", action="store_true", help="one FEN for every radar")
-    g.add_argument("--links", default="radar1,radar2", help="links (one FEN each), comma-separated; one link "
+    g.add_argument("--kernel", type=int, choices=(3, 4), help="conv kernel size (seed: 3 or 4; default 3)")
+    g.add_argument("--padding", choices=("valid", "same"), help="default valid")
+    g.add_argument("--fusion", choices=("concat", "sum", "max", "mean"), help="default concat")
+    g.add_argument("--shared-weights", action="store_true", default=None, help="one FEN for every radar")
+    g.add_argument("--links", help="links (one FEN each), comma-separated; one link "
                    "gives the single-radar variant (default radar1,radar2)")
-    g.add_argument("--time-pool", choices=("none", "max", "mean"), default="none",
+    g.add_argument("--time-pool", choices=("none", "max", "mean"),
                    help="pool each FEN's last feature map over time before flattening, so where an activity "
                    "sits in the clip matters less (default none: the seed's flatten)")
     g = p.add_argument_group("training")
@@ -74,7 +87,14 @@ def _add_preprocess_model_args(p) -> None:
                    help="CPU threads torch uses while training (intra-op parallelism of its convolutions and "
                    "matrix products; numpy/BLAS, the DSP and the data loading are not affected). "
                    "Default 1: weights are reproducible only at a fixed thread count (1 and 2 differ)")
-    g.add_argument("--no-batch-norm", action="store_true", help="the literal seed FEN without BatchNorm")
+    g.add_argument("--no-batch-norm", action="store_true", default=None, help="the literal seed FEN without "
+                   "BatchNorm")
+    g.add_argument("--feature-lr-scale", type=float, default=1.0, help="learning rate of the convolutional feature "
+                   "networks relative to --lr: < 1 a lower one (discriminative fine-tuning), 0 frozen (default 1)")
+    g.add_argument("--epoch-samples", type=positive_int, help="items drawn per epoch when datasets are weighted "
+                   "(--data-weights; default: the training set's size)")
+    g.add_argument("--no-cache", action="store_true", help="preprocess the datasets again instead of reading the "
+                   "cached inputs (processing.classifier.array_cache; the same arrays either way)")
     g = p.add_argument_group("augmentation of training batches (recorded in the model's train_config)")
     g.add_argument("--augment", nargs="?", const="all", choices=("all", "scale"),
                    help="all (the default when given without a value): random time shift (+-1 s), time stretch "
@@ -139,31 +159,70 @@ def _configs(args):
     from processing.classifier import ModelConfig, PreprocessConfig, TrainConfig
     from processing.io.dataset_store import ACTIVITIES
 
-    links = [s.strip() for s in args.links.split(",") if s.strip()]
-    pre = PreprocessConfig(n_velocity=args.size[0], n_time=args.size[1], v_range_mps=args.v_range or None,
-                           time_mode=args.time_mode, window_s=args.window_s, scale=args.scale,
-                           floor_db=args.floor_db, intensity=args.intensity)
-    model = ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links), input_size=tuple(args.size),
-                        kernel_size=args.kernel, padding=args.padding, fusion=args.fusion,
-                        shared_weights=args.shared_weights, batch_norm=not args.no_batch_norm,
-                        time_pool=args.time_pool)
+    links = [s.strip() for s in _opt(args, "links").split(",") if s.strip()]
+    size = tuple(_opt(args, "size"))
+    pre = PreprocessConfig(n_velocity=size[0], n_time=size[1], v_range_mps=_opt(args, "v_range") or None,
+                           time_mode=_opt(args, "time_mode"), window_s=_opt(args, "window_s"),
+                           scale=_opt(args, "scale"), floor_db=_opt(args, "floor_db"),
+                           intensity=_opt(args, "intensity"))
+    model = ModelConfig(n_classes=len(ACTIVITIES), n_branches=len(links), input_size=size,
+                        kernel_size=_opt(args, "kernel"), padding=_opt(args, "padding"), fusion=_opt(args, "fusion"),
+                        shared_weights=_opt(args, "shared_weights"), batch_norm=not _opt(args, "no_batch_norm"),
+                        time_pool=_opt(args, "time_pool"))
     tc = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, patience=args.patience,
                      val_fraction=args.val_fraction, group_split=not args.no_group_split, seed=args.seed,
                      threads=args.threads, augment=_augment_config(args), val_split=args.val_split,
                      holdout_factors=args.holdout_factors, holdout_tail=args.holdout_tail, average=args.average,
-                     average_tolerance=args.average_tolerance)
+                     average_tolerance=args.average_tolerance, feature_lr_scale=args.feature_lr_scale,
+                     epoch_samples=args.epoch_samples)
     if tc.augment.enabled and tc.augment.db_floor >= pre.floor_db:
         raise _user_error()(f"--aug-db {tc.augment.db_floor:g} must be below --floor-db {pre.floor_db:g}")
     return links, pre, model, tc
 
 
-def train_spec(spec: str, args, out: Path, log=print):
-    """Train on a dataset spec (`train_classifier`) and write the checkpoint, curves and validation confusion
-    next to `out` (`Training.save`); returns the `Training`."""
+# option -> (settings model, fields) it sets, for comparing given options with an --init checkpoint
+_OPTION_FIELDS = {"size": ("pre", ("n_velocity", "n_time")), "v_range": ("pre", ("v_range_mps",)),
+                  "time_mode": ("pre", ("time_mode",)), "window_s": ("pre", ("window_s",)),
+                  "scale": ("pre", ("scale",)), "floor_db": ("pre", ("floor_db",)),
+                  "intensity": ("pre", ("intensity",)),
+                  "kernel": ("net", ("kernel_size",)), "padding": ("net", ("padding",)), "fusion": ("net", ("fusion",)),
+                  "shared_weights": ("net", ("shared_weights",)), "time_pool": ("net", ("time_pool",)),
+                  "no_batch_norm": ("net", ("batch_norm",)), "links": ("links", ())}
+
+
+def _check_init_options(args, clf, links, pre, mcfg) -> None:
+    """Refuse a preprocessing or network option given together with --init whose value differs from the
+    checkpoint's (the options left out take the checkpoint's values)."""
+    for dest, (kind, fields) in _OPTION_FIELDS.items():
+        if getattr(args, dest, None) is None:
+            continue
+        given, kept = {"pre": (pre, clf.preprocess), "net": (mcfg, clf.model.cfg)}.get(kind, (None, None))
+        if kind == "links":
+            same, want, have = list(links) == list(clf.links), ",".join(links), ",".join(clf.links)
+        else:
+            want = " ".join(str(getattr(given, f)) for f in fields)
+            have = " ".join(str(getattr(kept, f)) for f in fields)
+            same = all(getattr(given, f) == getattr(kept, f) for f in fields)
+        if not same:
+            raise _user_error()(f"--{dest.replace('_', '-')} {want} differs from the --init checkpoint's {have}: "
+                                "fine-tuning keeps the checkpoint's preprocessing and network (leave the option out)")
+
+
+def train_spec(spec, args, out: Path, log=print):
+    """Train on a dataset spec or a list of them (`train_classifier`; with --init from a checkpoint, with
+    --data-weights mixed) and write the checkpoint, curves and validation confusion next to `out`
+    (`Training.save`); returns the `Training`."""
     from processing.classifier.experiment import train_classifier
 
     links, pre, mcfg, tcfg = _configs(args)
-    training = train_classifier(spec, links=links, preprocess=pre, model=mcfg, train_config=tcfg,
+    init = getattr(args, "init", None)
+    if init is not None:
+        _check_init_options(args, _load_model(init), links, pre, mcfg)
+        links = pre = mcfg = None  # the checkpoint's
+    specs = spec if isinstance(spec, (list, tuple)) else [spec]
+    training = train_classifier(specs if len(specs) > 1 else specs[0], links=links, preprocess=pre, model=mcfg,
+                                train_config=tcfg, init=init, weights=getattr(args, "data_weights", None),
+                                labels=getattr(args, "labels", None), cache=not args.no_cache,
                                 progress=not args.quiet, log=log)
     training.save(out)
     return training
@@ -172,8 +231,15 @@ def train_spec(spec: str, args, out: Path, log=print):
 def cmd_train(args) -> int:
     args.out = output_file(args.out, ".pt")
     check_output(args.out, "file")
-    train_spec(args.data, args, args.out)
+    if args.data_weights is not None and len(args.data_weights) != len(args.data):
+        raise _user_error()(f"--data-weights: give one weight per --data ({len(args.data)}), got "
+                            f"{len(args.data_weights)}")
+    training = train_spec(args.data, args, args.out)
     stem = args.out.with_suffix("")
+    n_real = len(training.meta.get("real_images") or [])
+    if n_real:
+        print(f"the model saw {n_real} real image(s) in training and validation; the checkpoint lists them (sha256), "
+              "and `evaluate --images` leaves them out")
     print(f"wrote {args.out}, {stem}_curves.png, {stem}_val_confusion.png, {stem}_val_confusion.csv")
     return 0
 
@@ -245,13 +311,23 @@ def load_images(args):
 
 
 def _evaluate_images(clf, args, out: Path) -> int:
-    from processing.classifier.images import evaluate_images, write_image_evaluation
+    from processing.classifier.images import evaluate_images, split_seen, write_image_evaluation
 
     t0 = time.perf_counter()
     images, bad, title = load_images(args)
+    images, seen = split_seen(clf, images)
+    if seen:
+        print(f"warning: {len(seen)} of the images were training data of this model (their sha256 is in the "
+              "checkpoint); they are left out of the metrics")
+    if seen and not any(im.activity in clf.classes for im in images):
+        raise _user_error()(f"every one of the {len(seen)} images of the model's classes was training data of this "
+                            "model: nothing to test")
     ev = evaluate_images(clf, images, bad)
-    files = write_image_evaluation(ev, out, title, extra={"people": args.people, "seconds": time.perf_counter() - t0})
-    print(f"{title}:\n{ev.summary()}")
+    files = write_image_evaluation(ev, out, title, extra={"people": args.people, "seconds": time.perf_counter() - t0,
+                                                          "left_out_seen_in_training": len(seen),
+                                                          "seen_in_training": [im.name for im in seen]})
+    left = f"\n  {len(seen)} image(s) left out: training data of the model" if seen else ""
+    print(f"{title}:\n{ev.summary()}" + left)
     print("wrote " + ", ".join(str(f) for f in files))
     return 0
 
@@ -312,7 +388,16 @@ def add_classifier_commands(sub) -> None:
                        "80:20 stratified split (grouped by motion source), Adam and early stopping. Writes "
                        "MODEL (checkpoint with preprocessing and class names), MODEL_curves.png and the "
                        "validation confusion matrix (PNG, CSV). " + (__doc__ or "").split("\n\n")[1])
-    p.add_argument("--data", required=True, help="dataset folder, optionally DIR:FILTER")
+    p.add_argument("--data", required=True, action="append", help="dataset folder, optionally DIR:FILTER, or real "
+                   "labelled images images:DIR[:people=P36-P45|P50,activity=walk|fall] (single-radar models; labels "
+                   "from Glasgow names or --labels); repeat to train on several, mixed by --data-weights")
+    p.add_argument("--data-weights", type=float, nargs="+", metavar="W", help="one weight per --data: the share of "
+                   "each training epoch's draws from each dataset (drawn with replacement; default: every item once "
+                   "per epoch)")
+    p.add_argument("--labels", type=Path, help="images: specs: CSV file,activity[,subject] for images whose names are "
+                   "not Glasgow names")
+    p.add_argument("--init", type=Path, metavar="MODEL", help="start from this checkpoint's weights (fine-tuning); "
+                   "its preprocessing and network are kept, and a different one given here is refused")
     p.add_argument("--out", required=True, type=Path, help="model checkpoint to write (.pt)")
     _add_preprocess_model_args(p)
     p.set_defaults(func=cmd_train)
