@@ -77,7 +77,8 @@ def main() -> int:
     blob = __import__("torch").load(model, weights_only=True)
     meta, hist = blob["meta"], blob["history"]
     results = {"train_wall_s": wall, "train_s": meta["train_seconds"], "load_s": meta["load_seconds"],
-               "epochs": len(hist["val_acc"]), "epoch_s_median": sorted(hist["seconds"])[len(hist["seconds"]) // 2], "best_epoch": meta["best_epoch"],
+               "epochs": len(hist["val_acc"]), "epoch_s_median": sorted(hist["seconds"])[len(hist["seconds"]) // 2],
+               "best_epoch": meta["best_epoch"],
                "val_accuracy": meta["val_accuracy"], "n_train": meta["n_train"], "n_val": meta["n_val"]}
     for name, data in (("mocap_walks", mocap), ("unseen_motions", unseen)):
         ev = out / f"eval_{name}"

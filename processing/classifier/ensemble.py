@@ -10,6 +10,8 @@ one forward pass per member at inference; nothing in it is fitted to real data.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
 from torch import nn
 
@@ -25,7 +27,7 @@ class SoftVote(nn.Module):
     The logarithm makes it a drop-in for a network's logits: softmax of it is the mean probability again.
     """
 
-    def __init__(self, members: list[nn.Module]):
+    def __init__(self, members: Sequence[nn.Module]):
         super().__init__()
         if not 2 <= len(members) <= MAX_MEMBERS:
             raise InputError(f"an ensemble needs 2 to {MAX_MEMBERS} members, got {len(members)}")
@@ -67,7 +69,9 @@ def ensemble(classifiers: list[Classifier], names: list[str] | None = None, *, d
             shared fields (named, with the member), or (`distinct`) a network given twice.
     """
     names = [f"member {i}" for i in range(len(classifiers))] if names is None else list(names)
-    first = classifiers[0] if classifiers else None
+    if not classifiers:
+        raise InputError(f"an ensemble needs 2 to {MAX_MEMBERS} networks, got none")
+    first = classifiers[0]
     nets, info = [], []
     for clf, name in zip(classifiers, names):
         for field, mine, ref in (("network configuration", clf.model.cfg, first.model.cfg),

@@ -279,6 +279,7 @@ def robustness_grid(clf, images, grid=DEFAULT_GRID, progress: bool = False) -> l
         moved = [dataclasses.replace(im, signature=apply(im.signature, pert)) for im in known]
         ev = evaluate_images(clf, moved)
         rep = ev.report
+        assert rep is not None  # `known` holds only images of the model's classes
         intact = np.array([motion_kept(im.signature, pert, m) >= INTACT for im, m in zip(known, motions)])
         right = np.array([clf.classes[int(p.argmax())] == im.activity for im, p in zip(ev.known, ev.known_proba)])
         row = {"perturbation": pert.name, "kind": pert.kind, "value": pert.value, "n": rep.n,

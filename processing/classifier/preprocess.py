@@ -72,7 +72,8 @@ class PreprocessConfig(BaseModel):
     # bounded like a motion (MAX_DURATION_S): the window is allocated as window_s / dt columns
     window_s: float = Field(6.0, gt=0, le=3600, description="time span of time_mode='window' [s]")
     scale: Literal["db", "linear"] = Field("db", description="dB with floor, or linear, per-sample max = 1")
-    floor_db: float = Field(40.0, gt=0, le=300, description="dynamic range kept by scale='db' [dB] (float64 spans ~300 dB)")
+    floor_db: float = Field(40.0, gt=0, le=300,
+                            description="dynamic range kept by scale='db' [dB] (float64 spans ~300 dB)")
     # the seed's p(v,t) is the default so that checkpoints written before this field existed load unchanged
     intensity: Literal["p", "power"] = Field("p", description="'p': the column-normalised p(v,t) (seed eq. 7); "
                                              "'power': the power spectrogram p(v,t) power(t), one scale per sample")
@@ -195,7 +196,7 @@ def preprocess(p_vt: np.ndarray, velocity: np.ndarray | None = None, time: np.nd
         raise InputError("intensity 'power' needs the sample's column power (Signature.power)")
     p = _velocity_grid(p, velocity, cfg)
     # the crop is found from p(v,t) whatever is shown: the same columns for both intensities
-    shown = p * power[None, :] if cfg.intensity == "power" else p
+    shown = p * power[None, :] if cfg.intensity == "power" and power is not None else p
     if cfg.time_mode == "window":
         p = _time_window(p, time, cfg, valid, power, shown)
     elif cfg.time_mode == "active":

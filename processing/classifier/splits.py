@@ -34,8 +34,9 @@ def split_indices(labels, groups=None, val_fraction: float = 0.2, seed: int = 0)
     """(train, validation) index arrays: stratified by label and, if `groups` is given, grouped.
 
     Grouped splits use scikit-learn's StratifiedGroupKFold with round(1 / val_fraction) folds and take
-    as validation the fold holding most classes (then nearest in size to `val_fraction`), so no group straddles the two sides and class shares stay close to
-    the dataset's. Raises ValueError when there are too few groups or samples to split.
+    as validation the fold holding most classes (then nearest in size to `val_fraction`), so no group
+    straddles the two sides and class shares stay close to the dataset's. Raises ValueError when there are
+    too few groups or samples to split.
     """
     from sklearn.model_selection import StratifiedGroupKFold, train_test_split
 
@@ -160,7 +161,7 @@ def holdout_split(labels, groups, factors: dict[str, np.ndarray], seed: int = 0,
     rng = np.random.default_rng([seed, 0x5EED])
     names = sorted(factors)
     chosen = [names[i] for i in rng.permutation(len(names))[:min(n_factors, len(names))]]
-    desc = {"group_fraction": group_fraction, "tail": tail, "held_out_sources": int(val.sum()),
+    desc: dict = {"group_fraction": group_fraction, "tail": tail, "held_out_sources": int(val.sum()),
             "held_out_groups": sorted({str(g) for g in np.asarray(groups, dtype=object)[va_groups]}), "factors": []}
     for name in sorted(chosen):
         v = factors[name]

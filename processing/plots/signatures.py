@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from typing import cast
 from pathlib import Path
 
 import numpy as np
@@ -129,7 +130,7 @@ def _label(name: str, what: str) -> str:
     return f"{name}: {what}" if name else what
 
 
-def plot_pvt(sigs, ax=None, title: str = "") -> Figure:
+def plot_pvt(sigs, ax=None, title: str = "") -> Figure | Path:
     """Micro-Doppler spectrogram p(v,t) x window power of every link (dB re the recording's strongest cell,
     40 dB range) with the mean radial velocity (eq. 8) over the windows that carry signal.
 
@@ -159,7 +160,7 @@ def plot_pvt(sigs, ax=None, title: str = "") -> Figure:
     return save_figure(fig, path) if path else fig
 
 
-def plot_mean_velocity(sigs, ax=None, title: str = "") -> Figure:
+def plot_mean_velocity(sigs, ax=None, title: str = "") -> Figure | Path:
     """Mean radial velocity [m/s] (seed eq. 8) of every link against time [s], one curve per link on one Axes.
 
     Args:
@@ -183,7 +184,7 @@ def plot_mean_velocity(sigs, ax=None, title: str = "") -> Figure:
     return save_figure(fig, path) if path else fig
 
 
-def plot_range(sigs, ax=None, title: str = "") -> Figure:
+def plot_range(sigs, ax=None, title: str = "") -> Figure | Path:
     """Range-time map: the range distribution p'(r,t) (seed eq. 10) x window power, dB re max, 40 dB.
 
     Args:
@@ -208,7 +209,7 @@ def plot_range(sigs, ax=None, title: str = "") -> Figure:
     return save_figure(fig, path) if path else fig
 
 
-def plot_range_doppler(sigs, ax=None, title: str = "", panels: int = RD_PANELS) -> Figure | None:
+def plot_range_doppler(sigs, ax=None, title: str = "", panels: int = RD_PANELS) -> Figure | Path | None:
     """Range-Doppler maps (range [m] x radial velocity [m/s]) of `panels` evenly spaced windows per link, one
     colour scale per link (dB re its strongest cell, 40 dB). None if no link carries maps.
 
@@ -234,10 +235,11 @@ def plot_range_doppler(sigs, ax=None, title: str = "", panels: int = RD_PANELS) 
                              dict(left=0.6, right=1.2, bottom=0.5, top=0.55, hspace=0.6), ncols=1)
     im = None
     for a, (name, s) in zip(axes, have.items()):
-        rd = s.range_doppler
+        rd, rd_time, rd_v = s.range_doppler, s.range_doppler_time, s.range_doppler_velocity
+        assert rd is not None and rd_time is not None and rd_v is not None  # `have` holds links with a map
         db = _db(rd)
         pick = np.unique(np.linspace(0, rd.shape[2] - 1, panels).round().astype(int))
-        (v0, v1), (r0, r1) = _edges(s.range_doppler_velocity), _edges(s.range)
+        (v0, v1), (r0, r1) = _edges(rd_v), _edges(s.range)
         width = v1 - v0
         step = 1.08 * width  # map width plus a gap
         v_ticks = [v for v in MaxNLocator(4).tick_values(v0, v1) if v0 <= v <= v1]
@@ -246,7 +248,7 @@ def plot_range_doppler(sigs, ax=None, title: str = "", panels: int = RD_PANELS) 
             x0 = j * step
             im = a.imshow(db[:, :, k], origin="lower", aspect="auto", extent=(x0, x0 + width, r0, r1), cmap="jet",
                           vmin=-DYNAMIC_RANGE_DB, vmax=0, interpolation="nearest")
-            a.text(x0 + width / 2, r1, _label(name, f"t = {s.range_doppler_time[k]:.2f} s").replace(": ", ", "),
+            a.text(x0 + width / 2, r1, _label(name, f"t = {rd_time[k]:.2f} s").replace(": ", ", "),
                    fontsize=8, ha="center", va="bottom")
             ticks += [x0 + v - v0 for v in v_ticks]
             labels += [f"{v:g}" for v in v_ticks]
@@ -269,10 +271,13 @@ def figures(sigs, title: str = "") -> dict[str, Figure]:
         sigs: a `Signature`, or {link name: Signature}.
         title: figure title (default none).
     """
+    # without the deprecated path argument every plot returns its Figure
     out = {"pvt": plot_pvt(sigs, title=title), "mean_velocity": plot_mean_velocity(sigs, title=title),
            "range": plot_range(sigs, title=title)}
     rd = plot_range_doppler(sigs, title=title)
-    return out if rd is None else {**out, "range_doppler": rd}
+    if rd is not None:
+        out["range_doppler"] = rd
+    return cast(dict[str, Figure], out)
 
 
 def save_figures(sigs, out_dir: str | Path, title: str = "") -> list[Path]:

@@ -135,7 +135,8 @@ def run_batch(items: list[WorkItem], out: str, plan_digest: str, retries: int, d
 
     if configure:
         configure_worker(items[0].backend if items else "points", dr_threads)
-    records, errors = [], []
+    records: list[dict] = []
+    errors: list[dict] = []
     groups: dict[str, list[WorkItem]] = {}
     for it in items:
         groups.setdefault(shared_key(it), []).append(it)
