@@ -22,10 +22,11 @@ A learning curve on real labelled images with subject-grouped cross-validation:
   which a site with k recordings per class does not have. The step counts are set beforehand, not on any fold:
   short fixed schedules for the two arms that start from the pretrained network, and for the real-only arm a
   budget proportional to its image count (`real_step_budget`: ~50 draws per image, 60-150 steps), so that
-  one image per class does not cost as much as all of them. The floor and the draws per image were chosen on
-  simulated items only (k simulated items per class from scratch, tested on other motion sources: 30 steps left
-  5 per class at 27-61 %, 60 steps reached the 78-86 % of 100-150 steps; 20 per class gained 2-5 points from
-  60 to 150 steps), never on a real image.
+  one image per class does not cost as much as all of them. The floor and the draws per image were read off
+  simulated items (`benchmarks/transfer_steps_on_sim.py`: k simulated items per class from scratch, tested on
+  other motion sources: 30 steps left 5 per class at 27-61 %, 60 steps reached the 78-86 % of 100-150 steps;
+  20 per class gained 2-5 points from 60 to 150 steps), not off real images (docs/results.md says what
+  prompted the check).
 
 Every run is one task (`Task`); tasks run in worker processes (one torch thread each: two trainings on a 2-core
 machine run twice as fast as one training on two threads, and results stay those of one thread), each
