@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from processing.classifier import ModelConfig, PreprocessConfig, TrainConfig
-from processing.classifier.transfer import TransferConfig, shot_indices, subject_folds
+from processing.classifier.transfer import TransferConfig, real_step_budget, shot_indices, subject_folds
 from processing.classifier.transfer_report import simulation_worth
 from processing.errors import InputError
 from rtchannel.cli import main
@@ -53,6 +53,18 @@ def test_simulation_worth_is_read_off_the_real_only_curve():
     assert above["bound"] == "above" and above["per_class"] is None and "5 per class" in above["text"]
 
 
+def test_real_only_steps_grow_with_the_images_between_the_floor_and_the_cap():
+    """Defaults (50 draws per image, batch 32, 60-150 steps): 5 images need ceil(250 / 32) = 8 steps, raised to the
+    floor of 60; 40 images ceil(62.5) = 63 and 50 images ceil(78.125) = 79 (rounded up, not down); 100 images 157,
+    capped at 150. Without real_passes every count gets real_steps; a cap below the floor wins."""
+    cfg = TransferConfig()
+    assert [real_step_budget(n, cfg) for n in (5, 25, 40, 50, 100, 240)] == [60, 60, 63, 79, 150, 150]
+    assert real_step_budget(20, cfg.model_copy(update={"batch_size": 16})) == 63  # ceil(1000 / 16) = ceil(62.5)
+    assert real_step_budget(5, TransferConfig(real_passes=None, real_steps=77)) == 77
+    assert real_step_budget(240, TransferConfig(real_steps=20)) == 20  # the cap wins over the floor of 60
+    assert real_step_budget(64, TransferConfig(real_passes=1.5, real_min_steps=1)) == 3
+
+
 def _config(**kw) -> TransferConfig:
     small = dict(shots=(0, 1, "all"), folds=2, seeds=(0,), real_steps=2, finetune_steps=2, mixed_steps=2, batch_size=8,
                  preprocess=PreprocessConfig(n_velocity=32, n_time=32, time_mode="window", intensity="power",
@@ -70,12 +82,17 @@ def test_no_test_image_reaches_a_training_and_a_study_resumes(tiny_dataset, glas
 
     original_run, original_train = transfer_run.run_task, training.train
     checked = []
+    # distinct step counts per arm; the real-only budget, ceil(4.8 * 5 / 8) = 3, is below its cap of 9
+    cfg = _config(real_passes=4.8, real_min_steps=1, real_steps=9, finetune_steps=2, mixed_steps=1)
+    expected = {"real": 3, "finetune": 2, "mixed": 1}
 
     def run_and_check(task, state=None, data=None):
-        inputs = []
+        inputs: list[np.ndarray] = []
+        steps: list[int | None] = []
 
         def spy(x, y, *a, **k):
             inputs.append(np.asarray(x))
+            steps.append(a[1].epoch_samples // a[1].batch_size if task.arm != "pretrain" else None)
             return original_train(x, y, *a, **k)
 
         monkeypatch.setattr(training, "train", spy)
@@ -85,13 +102,14 @@ def test_no_test_image_reaches_a_training_and_a_study_resumes(tiny_dataset, glas
             test = data["real"].x[data["folds"][task.fold]].reshape(len(data["folds"][task.fold]), -1)
             seen = inputs[0].reshape(len(inputs[0]), -1)
             assert not any((seen == t).all(axis=1).any() for t in test), task
+            assert steps == [expected[task.arm]] and row["steps"] == expected[task.arm], (task, steps)
+            assert real_step_budget(row["n_real"], cfg) == expected["real"]
             checked.append(task.key)
         return row
 
     monkeypatch.setattr(transfer_run, "run_task", run_and_check)
     out = tmp_path / "study"
-    study = transfer_run.run_transfer(f"{tiny_dataset}", glasgow_dir, out, _config(), workers=1, progress=False,
-                                      log=None)
+    study = transfer_run.run_transfer(f"{tiny_dataset}", glasgow_dir, out, cfg, workers=1, progress=False, log=None)
     assert len(checked) == 2 * 3 * 2  # shots 1 and all x 3 arms x 2 folds
     assert {r["arm"] for r in study.rows} == {"sim", "real", "finetune", "mixed"} and len(study.rows) == 14
     assert all(r["n_test"] == 5 for r in study.rows)  # one person's five images (drink is not a class)
@@ -104,12 +122,11 @@ def test_no_test_image_reaches_a_training_and_a_study_resumes(tiny_dataset, glas
         raise AssertionError("a finished study must not train again")
 
     monkeypatch.setattr(transfer_run, "run_task", nothing_to_do)
-    again = transfer_run.run_transfer(f"{tiny_dataset}", glasgow_dir, out, _config(), workers=1, progress=False,
-                                      log=None)
+    again = transfer_run.run_transfer(f"{tiny_dataset}", glasgow_dir, out, cfg, workers=1, progress=False, log=None)
     assert (out / "transfer.csv").read_text() == first and len(again.rows) == 14
     with pytest.raises(InputError, match="holds a study with other settings"):
-        transfer_run.run_transfer(f"{tiny_dataset}", glasgow_dir, out, _config(real_share=0.25), workers=1,
-                                  progress=False, log=None)
+        transfer_run.run_transfer(f"{tiny_dataset}", glasgow_dir, out, cfg.model_copy(update={"real_share": 0.25}),
+                                  workers=1, progress=False, log=None)
 
 
 def test_two_worker_processes_give_the_runs_of_one(tiny_dataset, glasgow_dir, tmp_path):
@@ -129,10 +146,11 @@ def test_cli_transfer_from_given_checkpoints(tiny_dataset, glasgow_dir, tmp_path
     out = tmp_path / "cli"
     args = ["transfer", "--sim", str(tiny_dataset), "--images", str(glasgow_dir), "--out", str(out), "--folds", "2",
             "--shots", "0", "1", "--arms", "real", "mixed", "--real-steps", "2", "--mixed-steps", "2", "--workers", "1",
-            "--quiet"]
+            "--real-passes", "0", "--quiet"]
     assert main([*args, "--pretrained", str(pre)]) == 0
     doc = json.loads((out / "transfer.json").read_text())
     assert {r["arm"] for r in doc["summary"]} == {"sim", "real", "mixed"} and "worth" in doc
+    assert doc["config"]["real_passes"] is None  # --real-passes 0: always --real-steps
     assert "| arm | real per class |" in capsys.readouterr().out
     assert main([*args, "--pretrained", str(pre), str(pre)]) == 2
     assert main([*args[:-1], "--shots", "-1"]) == 2

@@ -25,9 +25,12 @@ def cmd_transfer(args) -> int:
     from processing.classifier.transfer_run import run_transfer
 
     check_output(args.out, "dir")
-    given = {k: getattr(args, k) for k in ("folds", "batch_size", "real_steps", "finetune_steps", "mixed_steps", "lr",
+    given = {k: getattr(args, k) for k in ("folds", "batch_size", "real_steps", "real_min_steps",
+                                           "finetune_steps", "mixed_steps", "lr",
                                            "finetune_lr", "feature_lr_scale", "real_share")
              if getattr(args, k) is not None}
+    if args.real_passes is not None:
+        given["real_passes"] = None if args.real_passes == 0 else args.real_passes
     if args.shots is not None:
         given["shots"] = tuple(args.shots)
     if args.seeds is not None:
@@ -62,7 +65,7 @@ def add_transfer(sub) -> None:
     p.add_argument("--out", required=True, type=Path, help="output folder (an earlier run of the same study resumes)")
     p.add_argument("--shots", type=_shot, nargs="+", metavar="K", help="real images per class, 0 = simulation only, "
                    "'all' = every training-fold image (default 0 1 2 5 10 20 all)")
-    p.add_argument("--folds", type=positive_int, help="subject-grouped folds (default 5)")
+    p.add_argument("--folds", type=positive_int, help="subject-grouped folds (default 4)")
     p.add_argument("--seeds", type=seed_int, nargs="+", help="training seeds (default 0)")
     p.add_argument("--arms", nargs="+", choices=("real", "finetune", "mixed"), help="default: all three")
     p.add_argument("--pretrained", type=Path, nargs="+", metavar="MODEL", help="simulation-only single-radar "
@@ -70,9 +73,12 @@ def add_transfer(sub) -> None:
     p.add_argument("--workers", type=positive_int, default=2, help="worker processes, one torch thread each "
                    "(default 2)")
     g = p.add_argument_group("trainings on real images (fixed step counts, no validation on real images)")
-    g.add_argument("--real-steps", type=positive_int, help="steps of the real-only arm (default 150)")
-    g.add_argument("--finetune-steps", type=positive_int, help="steps of the fine-tuning arm (default 100)")
-    g.add_argument("--mixed-steps", type=positive_int, help="steps of the mixed arm (default 100)")
+    g.add_argument("--real-steps", type=positive_int, help="most steps of the real-only arm (default 150)")
+    g.add_argument("--real-passes", type=float, help="real-only arm: steps to draw each image about this many "
+                   "times, at least --real-min-steps, at most --real-steps (default 50; 0: always --real-steps)")
+    g.add_argument("--real-min-steps", type=positive_int, help="fewest steps of the real-only arm (default 60)")
+    g.add_argument("--finetune-steps", type=positive_int, help="steps of the fine-tuning arm (default 50)")
+    g.add_argument("--mixed-steps", type=positive_int, help="steps of the mixed arm (default 50)")
     g.add_argument("--batch-size", type=positive_int, help="default 32")
     g.add_argument("--lr", type=float, help="learning rate from scratch (default 1e-3)")
     g.add_argument("--finetune-lr", type=float, help="learning rate of the fine-tuning and mixed arms (default 1e-4)")
